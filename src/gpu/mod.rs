@@ -1,0 +1,33 @@
+//! A thin, documented layer over `ash` (Vulkan 1.3). Nothing here knows what a volume is.
+//!
+//! # Contract
+//! * All `unsafe` Vulkan calls of the crate live in this module. Callers see safe types.
+//! * [`Context`] owns the instance, the logical device, the one compute queue and the memory
+//!   allocator. It is shared through `Arc<Context>`; every resource ([`Buffer`], [`Image`],
+//!   [`ComputePipeline`], ...) holds such an `Arc` and destroys its Vulkan object in `Drop`,
+//!   so the device always outlives what was created from it.
+//! * Synchronisation is explicit and coarse: work is recorded into one-shot command buffers
+//!   ([`Recorder`]) and [`Context::submit_and_wait`] blocks on a fence. Between dependent
+//!   dispatches the recorder inserts a full compute→compute memory barrier. No resource is
+//!   used by two submissions at once because every submission is waited for.
+//! * Images live in `GENERAL` layout after creation, so one image can be sampled and written
+//!   as a storage image in different dispatches without layout transitions.
+//! * Every object gets a debug name (visible in validation messages and capture tools).
+//! * Validation: with [`ContextDesc::validation`] the Khronos validation layer is enabled and
+//!   a debug messenger counts every error it reports ([`Context::validation_errors`]); tests
+//!   fail when the count is non-zero (the "validation canary").
+
+mod commands;
+mod context;
+mod error;
+mod pipeline;
+mod resources;
+pub mod shader;
+
+pub use commands::{Recorder, Timestamps};
+pub use context::{list_devices, Context, ContextDesc, DeviceInfo, DeviceSelector};
+pub use error::GpuError;
+pub use pipeline::{Binding, BindingKind, ComputePipeline, DescriptorSet, Resource};
+pub use resources::{Buffer, Image, ImageDesc, Sampler, SamplerDesc};
+
+pub use ash::vk::Format;

@@ -1,0 +1,380 @@
+//! RAII buffers, images and samplers created from labelled descriptors.
+
+use std::sync::Arc;
+
+use ash::vk;
+use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme};
+use gpu_allocator::MemoryLocation;
+
+use super::error::{vk_err, GpuError};
+use super::Context;
+
+fn allocate(
+    ctx: &Context,
+    label: &str,
+    requirements: vk::MemoryRequirements,
+    location: MemoryLocation,
+    linear: bool,
+) -> Result<Allocation, GpuError> {
+    let mut guard = ctx.allocator.lock().map_err(|_| GpuError::Allocation {
+        what: label.into(),
+        message: "allocator lock poisoned".into(),
+    })?;
+    let allocator = guard.as_mut().ok_or_else(|| GpuError::Allocation {
+        what: label.into(),
+        message: "allocator already destroyed".into(),
+    })?;
+    allocator
+        .allocate(&AllocationCreateDesc {
+            name: label,
+            requirements,
+            location,
+            linear,
+            allocation_scheme: AllocationScheme::GpuAllocatorManaged,
+        })
+        .map_err(|e| match e {
+            gpu_allocator::AllocationError::OutOfMemory => GpuError::OutOfDeviceMemory {
+                what: label.to_string(),
+                bytes: requirements.size,
+            },
+            e => GpuError::Allocation {
+                what: label.to_string(),
+                message: e.to_string(),
+            },
+        })
+}
+
+fn free(ctx: &Context, allocation: Allocation) {
+    if let Ok(mut guard) = ctx.allocator.lock() {
+        if let Some(a) = guard.as_mut() {
+            let _ = a.free(allocation);
+        }
+    }
+}
+
+/// A buffer with its memory. Host-visible buffers stay mapped.
+pub struct Buffer {
+    ctx: Arc<Context>,
+    pub(crate) raw: vk::Buffer,
+    allocation: Option<Allocation>,
+    pub size: u64,
+    pub label: String,
+}
+
+impl Buffer {
+    /// A buffer the CPU writes and the GPU reads (uploads, uniforms).
+    pub fn new_upload(
+        ctx: &Arc<Context>,
+        label: &str,
+        size: u64,
+        usage: vk::BufferUsageFlags,
+    ) -> Result<Self, GpuError> {
+        Self::new(ctx, label, size, usage, MemoryLocation::CpuToGpu)
+    }
+
+    /// A buffer the GPU writes and the CPU reads back.
+    pub fn new_readback(ctx: &Arc<Context>, label: &str, size: u64) -> Result<Self, GpuError> {
+        Self::new(
+            ctx,
+            label,
+            size,
+            vk::BufferUsageFlags::TRANSFER_DST,
+            MemoryLocation::GpuToCpu,
+        )
+    }
+
+    fn new(
+        ctx: &Arc<Context>,
+        label: &str,
+        size: u64,
+        usage: vk::BufferUsageFlags,
+        location: MemoryLocation,
+    ) -> Result<Self, GpuError> {
+        let info = vk::BufferCreateInfo::default()
+            .size(size.max(4))
+            .usage(usage)
+            .sharing_mode(vk::SharingMode::EXCLUSIVE);
+        let d = &ctx.device;
+        // SAFETY: valid create info; the buffer is destroyed in Drop or on the error paths.
+        let raw = unsafe { d.create_buffer(&info, None) }.map_err(vk_err("vkCreateBuffer"))?;
+        let requirements = unsafe { d.get_buffer_memory_requirements(raw) };
+        let allocation = match allocate(ctx, label, requirements, location, true) {
+            Ok(a) => a,
+            Err(e) => {
+                unsafe { d.destroy_buffer(raw, None) };
+                return Err(e);
+            }
+        };
+        if let Err(e) = unsafe { d.bind_buffer_memory(raw, allocation.memory(), allocation.offset()) } {
+            free(ctx, allocation);
+            unsafe { d.destroy_buffer(raw, None) };
+            return Err(GpuError::vk("vkBindBufferMemory", e));
+        }
+        ctx.set_name(raw, label);
+        Ok(Buffer {
+            ctx: ctx.clone(),
+            raw,
+            allocation: Some(allocation),
+            size,
+            label: label.to_string(),
+        })
+    }
+
+    /// Copies `bytes` to the start of a mapped buffer.
+    pub fn write(&mut self, bytes: &[u8]) -> Result<(), GpuError> {
+        let label = self.label.clone();
+        let slice = self
+            .allocation
+            .as_mut()
+            .and_then(|a| a.mapped_slice_mut())
+            .ok_or_else(|| GpuError::Allocation {
+                what: label.clone(),
+                message: "buffer is not host visible".into(),
+            })?;
+        if bytes.len() > slice.len() {
+            return Err(GpuError::Allocation {
+                what: label,
+                message: format!("write of {} bytes into {} bytes", bytes.len(), slice.len()),
+            });
+        }
+        slice[..bytes.len()].copy_from_slice(bytes);
+        Ok(())
+    }
+
+    /// The mapped contents of a host-visible buffer.
+    pub fn read(&self) -> Result<&[u8], GpuError> {
+        self.allocation
+            .as_ref()
+            .and_then(|a| a.mapped_slice())
+            .map(|s| &s[..self.size as usize])
+            .ok_or_else(|| GpuError::Allocation {
+                what: self.label.clone(),
+                message: "buffer is not host visible".into(),
+            })
+    }
+}
+
+impl Drop for Buffer {
+    fn drop(&mut self) {
+        // SAFETY: all submissions using this buffer were waited for (see module contract).
+        unsafe { self.ctx.device.destroy_buffer(self.raw, None) };
+        if let Some(a) = self.allocation.take() {
+            free(&self.ctx, a);
+        }
+    }
+}
+
+/// Describes an image: 2D when `depth == 1` and `dim3` is false.
+#[derive(Clone, Debug)]
+pub struct ImageDesc {
+    pub label: String,
+    pub format: vk::Format,
+    pub extent: [u32; 3],
+    pub dim3: bool,
+    pub mip_levels: u32,
+    pub usage: vk::ImageUsageFlags,
+}
+
+impl ImageDesc {
+    /// A 2D image written by compute shaders and read by later dispatches or copied out.
+    pub fn storage_2d(label: &str, format: vk::Format, width: u32, height: u32) -> Self {
+        ImageDesc {
+            label: label.into(),
+            format,
+            extent: [width, height, 1],
+            dim3: false,
+            mip_levels: 1,
+            usage: vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_SRC,
+        }
+    }
+
+    /// A sampled image filled once by a transfer (volumes, tables, environment maps).
+    pub fn sampled(label: &str, format: vk::Format, extent: [u32; 3], dim3: bool, mip_levels: u32) -> Self {
+        ImageDesc {
+            label: label.into(),
+            format,
+            extent,
+            dim3,
+            mip_levels,
+            usage: vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_DST,
+        }
+    }
+}
+
+/// A device-local image and its full view, in `GENERAL` layout once recorded as initialised.
+pub struct Image {
+    ctx: Arc<Context>,
+    pub(crate) raw: vk::Image,
+    pub(crate) view: vk::ImageView,
+    allocation: Option<Allocation>,
+    pub desc: ImageDesc,
+}
+
+impl Image {
+    pub fn new(ctx: &Arc<Context>, desc: ImageDesc) -> Result<Self, GpuError> {
+        let limits = ctx.limits();
+        let limit = if desc.dim3 {
+            limits.max_image_dimension3_d
+        } else {
+            limits.max_image_dimension2_d
+        };
+        let largest = desc.extent.iter().copied().max().unwrap_or(1);
+        if largest > limit {
+            return Err(GpuError::Limit {
+                what: format!("{} size", desc.label),
+                requested: largest as u64,
+                limit: limit as u64,
+            });
+        }
+        let needed = if desc.usage.contains(vk::ImageUsageFlags::STORAGE) {
+            vk::FormatFeatureFlags::STORAGE_IMAGE
+        } else {
+            vk::FormatFeatureFlags::SAMPLED_IMAGE
+        };
+        if !ctx.format_features(desc.format).contains(needed) {
+            return Err(GpuError::Format(desc.format, "the requested image usage"));
+        }
+        let info = vk::ImageCreateInfo::default()
+            .image_type(if desc.dim3 {
+                vk::ImageType::TYPE_3D
+            } else {
+                vk::ImageType::TYPE_2D
+            })
+            .format(desc.format)
+            .extent(vk::Extent3D {
+                width: desc.extent[0],
+                height: desc.extent[1],
+                depth: desc.extent[2],
+            })
+            .mip_levels(desc.mip_levels)
+            .array_layers(1)
+            .samples(vk::SampleCountFlags::TYPE_1)
+            .tiling(vk::ImageTiling::OPTIMAL)
+            .usage(desc.usage)
+            .sharing_mode(vk::SharingMode::EXCLUSIVE)
+            .initial_layout(vk::ImageLayout::UNDEFINED);
+        let d = &ctx.device;
+        // SAFETY: valid create info; objects are destroyed in Drop or on error paths below.
+        let raw = unsafe { d.create_image(&info, None) }.map_err(vk_err("vkCreateImage"))?;
+        let requirements = unsafe { d.get_image_memory_requirements(raw) };
+        let allocation = match allocate(ctx, &desc.label, requirements, MemoryLocation::GpuOnly, false) {
+            Ok(a) => a,
+            Err(e) => {
+                unsafe { d.destroy_image(raw, None) };
+                return Err(e);
+            }
+        };
+        if let Err(e) = unsafe { d.bind_image_memory(raw, allocation.memory(), allocation.offset()) } {
+            free(ctx, allocation);
+            unsafe { d.destroy_image(raw, None) };
+            return Err(GpuError::vk("vkBindImageMemory", e));
+        }
+        let view_info = vk::ImageViewCreateInfo::default()
+            .image(raw)
+            .view_type(if desc.dim3 {
+                vk::ImageViewType::TYPE_3D
+            } else {
+                vk::ImageViewType::TYPE_2D
+            })
+            .format(desc.format)
+            .subresource_range(Self::full_range(desc.mip_levels));
+        let view = match unsafe { d.create_image_view(&view_info, None) } {
+            Ok(v) => v,
+            Err(e) => {
+                free(ctx, allocation);
+                unsafe { d.destroy_image(raw, None) };
+                return Err(GpuError::vk("vkCreateImageView", e));
+            }
+        };
+        ctx.set_name(raw, &desc.label);
+        ctx.set_name(view, &format!("{} view", desc.label));
+        Ok(Image {
+            ctx: ctx.clone(),
+            raw,
+            view,
+            allocation: Some(allocation),
+            desc,
+        })
+    }
+
+    pub(crate) fn full_range(mip_levels: u32) -> vk::ImageSubresourceRange {
+        vk::ImageSubresourceRange {
+            aspect_mask: vk::ImageAspectFlags::COLOR,
+            base_mip_level: 0,
+            level_count: mip_levels,
+            base_array_layer: 0,
+            layer_count: 1,
+        }
+    }
+
+    pub fn width(&self) -> u32 {
+        self.desc.extent[0]
+    }
+
+    pub fn height(&self) -> u32 {
+        self.desc.extent[1]
+    }
+}
+
+impl Drop for Image {
+    fn drop(&mut self) {
+        // SAFETY: all submissions using this image were waited for (see module contract).
+        unsafe {
+            self.ctx.device.destroy_image_view(self.view, None);
+            self.ctx.device.destroy_image(self.raw, None);
+        }
+        if let Some(a) = self.allocation.take() {
+            free(&self.ctx, a);
+        }
+    }
+}
+
+/// Sampler settings that matter to the renderer.
+#[derive(Clone, Debug)]
+pub struct SamplerDesc {
+    pub label: String,
+    pub linear: bool,
+    pub mipmaps: bool,
+    /// Address mode per axis (u, v, w).
+    pub address: [vk::SamplerAddressMode; 3],
+}
+
+pub struct Sampler {
+    ctx: Arc<Context>,
+    pub(crate) raw: vk::Sampler,
+}
+
+impl Sampler {
+    pub fn new(ctx: &Arc<Context>, desc: &SamplerDesc) -> Result<Self, GpuError> {
+        let filter = if desc.linear {
+            vk::Filter::LINEAR
+        } else {
+            vk::Filter::NEAREST
+        };
+        let info = vk::SamplerCreateInfo::default()
+            .mag_filter(filter)
+            .min_filter(filter)
+            .mipmap_mode(if desc.mipmaps {
+                vk::SamplerMipmapMode::LINEAR
+            } else {
+                vk::SamplerMipmapMode::NEAREST
+            })
+            .address_mode_u(desc.address[0])
+            .address_mode_v(desc.address[1])
+            .address_mode_w(desc.address[2])
+            .border_color(vk::BorderColor::FLOAT_TRANSPARENT_BLACK)
+            .min_lod(0.0)
+            .max_lod(if desc.mipmaps { vk::LOD_CLAMP_NONE } else { 0.0 });
+        // SAFETY: valid create info; destroyed in Drop.
+        let raw = unsafe { ctx.device.create_sampler(&info, None) }.map_err(vk_err("vkCreateSampler"))?;
+        ctx.set_name(raw, &desc.label);
+        Ok(Sampler { ctx: ctx.clone(), raw })
+    }
+}
+
+impl Drop for Sampler {
+    fn drop(&mut self) {
+        // SAFETY: all submissions using this sampler were waited for.
+        unsafe { self.ctx.device.destroy_sampler(self.raw, None) };
+    }
+}

@@ -1,0 +1,24 @@
+//! caustica: interactive volume rendering with refraction, soft shadows and caustics, after
+//! Magnus & Bruckner, "Interactive Dynamic Volume Illumination with Refraction and Caustics"
+//! (IEEE TVCG 2017).
+//!
+//! Data flows one way: **file → [`volume::Volume`] → [`scene::Scene`] → [`render::Renderer`] → image**.
+//!
+//! | module | what it holds |
+//! |---|---|
+//! | [`volume`] | `Volume` (dims, spacing, samples, value range), one file per format loader, procedural scenes |
+//! | [`transfer`] | the four transfer functions (α, c, η, m), their JSON format, pre-integration |
+//! | [`scene`] | everything one image depends on; TOML scene files; built-in scenes |
+//! | [`gpu`] | a thin documented layer over ash: device, memory, images, pipelines, naga shaders |
+//! | [`render`] | the method on top of `gpu`: planes, propagation, environment, output; `Features` |
+//! | [`reference`] | CPU renderers used to check the GPU one |
+//!
+//! Each layer only calls the one below it: `main` uses `render` + `scene`; `render` uses `gpu`;
+//! nothing in `gpu` knows what a volume is.
+
+pub mod gpu;
+pub mod reference;
+pub mod render;
+pub mod scene;
+pub mod transfer;
+pub mod volume;

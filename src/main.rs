@@ -1,0 +1,303 @@
+//! The `caustica` command line: parse, call the library, map errors to exit codes.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use anyhow::{bail, Context as _, Result};
+use clap::{Parser, Subcommand};
+
+use caustica::gpu::{list_devices, Context, ContextDesc, DeviceSelector, GpuError};
+use caustica::render::{DebugView, PreparedScene, RenderError, RenderRequest, Renderer};
+use caustica::scene::{builtin, Scene, TransferSource, VolumeSource, BUILTIN_SCENES};
+use caustica::transfer::TransferFunctions;
+use caustica::volume::{self, Endian, RawDesc, ScalarType};
+
+/// Exit codes (see README, "Errors and exit codes").
+const EXIT_INPUT: u8 = 1;
+const EXIT_NO_VULKAN: u8 = 3;
+const EXIT_GPU: u8 = 4;
+
+#[derive(Parser)]
+#[command(
+    name = "caustica",
+    version,
+    about = "Volume rendering with refraction, soft shadows and caustics"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render a scene file, a volume file or a built-in scene to PNG (sRGB) or EXR (linear).
+    Render(Box<RenderArgs>),
+    /// List the built-in scenes.
+    Scenes,
+    /// List the Vulkan devices caustica sees.
+    Devices,
+    /// Write the volume of a built-in scene to an NRRD file.
+    Dataset {
+        /// Built-in volume: ball-lens, glass, supernova, luneburg, thin-structures
+        name: String,
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Voxels along the longest axis.
+        #[arg(long, default_value_t = 128)]
+        resolution: usize,
+        /// Write uncompressed data (default: gzip).
+        #[arg(long)]
+        raw: bool,
+    },
+}
+
+#[derive(clap::Args)]
+struct RenderArgs {
+    /// A scene file (.toml) or a volume file (.nrrd, .nhdr, or raw with --raw-dims).
+    input: Option<PathBuf>,
+    /// Render a built-in scene instead (see `caustica scenes`).
+    #[arg(long, conflicts_with = "input")]
+    scene: Option<String>,
+    /// Output image: .png (8-bit sRGB) or .exr (linear float).
+    #[arg(short, long, default_value = "caustica.png")]
+    output: PathBuf,
+    /// Image size, WIDTHxHEIGHT.
+    #[arg(long, default_value = "512x512", value_parser = parse_size)]
+    size: (u32, u32),
+    /// Vulkan device: index or name substring (see `caustica devices`).
+    #[arg(long, default_value = "auto")]
+    device: String,
+    /// Write a diagnostic buffer instead of the image: light, light-direction, intensity, medium.
+    #[arg(long, value_parser = parse_debug_view)]
+    debug_view: Option<DebugView>,
+    /// Relative depth in [0, 1] of the plane shown by --debug-view.
+    #[arg(long, default_value_t = 0.5)]
+    at_depth: f32,
+    /// Print planes, ms per plane and total GPU time.
+    #[arg(long)]
+    timings: bool,
+    /// Override the scene's sample distance (multiple of the smallest voxel size).
+    #[arg(long)]
+    sample_distance: Option<f32>,
+    /// Override the resolution of a built-in scene's volume.
+    #[arg(long)]
+    resolution: Option<usize>,
+    /// Transfer functions (JSON) for a volume file.
+    #[arg(long)]
+    transfer: Option<PathBuf>,
+    /// Raw volume: dims as XxYxZ.
+    #[arg(long, value_parser = parse_dims)]
+    raw_dims: Option<[usize; 3]>,
+    /// Raw volume: scalar type (u8, i8, u16, i16, u32, i32, f32, f64).
+    #[arg(long, default_value = "u8")]
+    raw_type: String,
+    /// Raw volume: byte order.
+    #[arg(long, default_value = "little")]
+    raw_endian: String,
+    /// Raw volume: voxel spacing as X,Y,Z.
+    #[arg(long, value_parser = parse_spacing)]
+    raw_spacing: Option<[f32; 3]>,
+    /// Raw volume: bytes to skip at the start of the file.
+    #[arg(long, default_value_t = 0)]
+    raw_header: u64,
+}
+
+fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s.split_once(['x', 'X']).ok_or("expected WIDTHxHEIGHT, e.g. 512x512")?;
+    let p = |v: &str| v.trim().parse::<u32>().map_err(|e| format!("'{v}': {e}"));
+    let (w, h) = (p(w)?, p(h)?);
+    if w == 0 || h == 0 {
+        return Err("width and height must be at least 1".into());
+    }
+    Ok((w, h))
+}
+
+fn parse_dims(s: &str) -> Result<[usize; 3], String> {
+    let v: Vec<usize> = s
+        .split(['x', 'X'])
+        .map(|p| p.trim().parse::<usize>().map_err(|e| format!("'{p}': {e}")))
+        .collect::<Result<_, _>>()?;
+    v.try_into().map_err(|_| "expected XxYxZ, e.g. 256x256x108".to_string())
+}
+
+fn parse_spacing(s: &str) -> Result<[f32; 3], String> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|p| p.trim().parse::<f32>().map_err(|e| format!("'{p}': {e}")))
+        .collect::<Result<_, _>>()?;
+    v.try_into().map_err(|_| "expected X,Y,Z, e.g. 0.5,0.5,2".to_string())
+}
+
+fn parse_debug_view(s: &str) -> Result<DebugView, String> {
+    DebugView::parse(s).ok_or_else(|| format!("'{s}': expected light, light-direction, intensity or medium"))
+}
+
+/// A scene for a bare volume file: default camera and light, default or given transfer functions.
+fn scene_for_volume(args: &RenderArgs, path: &Path) -> Result<Scene> {
+    let volume = match args.raw_dims {
+        Some(dims) => VolumeSource::Raw(RawDesc {
+            path: path.to_path_buf(),
+            dims,
+            scalar: args.raw_type.parse::<ScalarType>()?,
+            endian: match args.raw_endian.as_str() {
+                "little" => Endian::Little,
+                "big" => Endian::Big,
+                other => bail!("--raw-endian '{other}': expected little or big"),
+            },
+            spacing: args.raw_spacing.unwrap_or([1.0; 3]),
+            header_bytes: args.raw_header,
+        }),
+        None => VolumeSource::File {
+            path: path.to_path_buf(),
+        },
+    };
+    let tf = match &args.transfer {
+        Some(p) => TransferFunctions::load(p)?,
+        None => TransferFunctions::default(),
+    };
+    Ok(Scene {
+        volume,
+        eta_volume: None,
+        window: None,
+        transfer: TransferSource::Inline(tf),
+        camera: Default::default(),
+        light: Default::default(),
+        shading: Default::default(),
+        clip: None,
+        environment: Default::default(),
+        quality: Default::default(),
+    })
+}
+
+fn load_scene(args: &RenderArgs) -> Result<Scene> {
+    let mut scene = match (&args.scene, &args.input) {
+        (Some(name), _) => builtin(name)?.scene,
+        (None, Some(path)) if path.extension().is_some_and(|e| e == "toml") => Scene::load(path)?,
+        (None, Some(path)) => scene_for_volume(args, path)?,
+        (None, None) => bail!("give a scene file, a volume file or --scene NAME (see `caustica scenes`)"),
+    };
+    if let Some(d) = args.sample_distance {
+        scene.quality.sample_distance = d;
+    }
+    if let (Some(r), VolumeSource::Builtin { resolution, .. }) = (args.resolution, &mut scene.volume) {
+        *resolution = r;
+    }
+    scene.validate()?;
+    Ok(scene)
+}
+
+fn render(args: &RenderArgs) -> Result<()> {
+    let scene = load_scene(args)?;
+    let prepared = PreparedScene::load(&scene)?;
+    let ctx = Context::new(&ContextDesc::from_env(DeviceSelector::parse(&args.device)))?;
+    let mut renderer = Renderer::new(ctx.clone())?;
+    let mut req = RenderRequest::new(args.size.0, args.size.1);
+    req.progress = true;
+    if let Some(v) = args.debug_view {
+        req.debug_view = v;
+        req.debug_depth = args.at_depth;
+    }
+    let out = renderer.render(&prepared, &req)?;
+    let (non_finite, negative) = out.image.count_invalid();
+    if non_finite > 0 || negative > 0 {
+        bail!(
+            "the render produced {non_finite} non-finite and {negative} negative values; not writing {}",
+            args.output.display()
+        );
+    }
+    out.image.save(&args.output)?;
+    let s = &out.stats;
+    if args.timings {
+        println!(
+            "device: {}\nfeatures: {}\nplanes: {} (integrated {})\nms per plane: {:.3}\ntotal GPU ms: {:.1}\nstate buffers: {:.1} MiB",
+            ctx.info.name,
+            s.features.describe(),
+            s.planes,
+            s.planes_run,
+            s.ms_per_plane,
+            s.gpu_ms,
+            s.state_bytes as f64 / (1024.0 * 1024.0)
+        );
+    }
+    eprintln!("wrote {} ({}×{})", args.output.display(), args.size.0, args.size.1);
+    if ctx.validation_errors() > 0 {
+        bail!("{} Vulkan validation errors were reported", ctx.validation_errors());
+    }
+    Ok(())
+}
+
+fn run(cli: Cli) -> Result<()> {
+    match cli.command {
+        Command::Render(args) => render(&args),
+        Command::Scenes => {
+            for name in BUILTIN_SCENES {
+                let s = builtin(name)?;
+                println!("{:<16} {}", s.name, s.description);
+            }
+            Ok(())
+        }
+        Command::Devices => {
+            let devices = list_devices()?;
+            if devices.is_empty() {
+                println!("no Vulkan devices found");
+            }
+            for d in devices {
+                println!(
+                    "[{}] {} ({}, Vulkan {}){}",
+                    d.index,
+                    d.name,
+                    d.kind,
+                    d.api_version,
+                    if d.usable {
+                        ""
+                    } else {
+                        " - not usable: needs Vulkan 1.3"
+                    }
+                );
+            }
+            Ok(())
+        }
+        Command::Dataset {
+            name,
+            output,
+            resolution,
+            raw,
+        } => {
+            let vol = volume::procedural::generate(&name, resolution)?;
+            volume::nrrd::write_nrrd(&output, &vol, !raw).with_context(|| format!("writing {}", output.display()))?;
+            eprintln!(
+                "wrote {} ({}×{}×{})",
+                output.display(),
+                vol.dims[0],
+                vol.dims[1],
+                vol.dims[2]
+            );
+            Ok(())
+        }
+    }
+}
+
+fn exit_code(err: &anyhow::Error) -> u8 {
+    let gpu = err
+        .downcast_ref::<GpuError>()
+        .or_else(|| match err.downcast_ref::<RenderError>() {
+            Some(RenderError::Gpu(g)) => Some(g),
+            _ => None,
+        });
+    match gpu {
+        Some(GpuError::NoLoader(_) | GpuError::NoDevice(_) | GpuError::DeviceNotFound { .. }) => EXIT_NO_VULKAN,
+        Some(_) => EXIT_GPU,
+        None => EXIT_INPUT,
+    }
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match run(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(err) => {
+            eprintln!("error: {err:#}");
+            ExitCode::from(exit_code(&err))
+        }
+    }
+}

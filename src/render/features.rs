@@ -1,0 +1,130 @@
+//! `Features`: what a scene needs the renderer to model. Each feature is an `override` constant
+//! in the shaders; a disabled feature is constant-folded away and its buffers are not allocated.
+
+use crate::scene::{Projection, Scene, Toggle};
+use crate::transfer::TransferFunctions;
+
+/// What one image needs. Derived from the scene ([`Features::for_scene`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
+pub struct Features {
+    /// η varies: bend light and view rays (light-direction, view position/direction buffers).
+    pub refraction: bool,
+    /// The medium colour is not white: medium buffer per view ray, medium attenuation of light.
+    pub medium: bool,
+    /// Soft light: three-sample incremental convolution.
+    pub light_filter: bool,
+    /// Intensity law (caustics). Only meaningful with refraction.
+    pub intensity_correction: bool,
+    /// Cook–Torrance highlights; their Fresnel term needs an index change, so only with refraction.
+    pub specular: bool,
+    pub clip: bool,
+    pub eta_volume: bool,
+    pub orthographic: bool,
+}
+
+/// Diagnostic buffers `--debug-view` can show instead of the image.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
+pub enum DebugView {
+    #[default]
+    Image,
+    Light,
+    LightDirection,
+    Intensity,
+    Medium,
+}
+
+impl DebugView {
+    pub fn parse(s: &str) -> Option<Self> {
+        Some(match s {
+            "image" => DebugView::Image,
+            "light" => DebugView::Light,
+            "light-direction" => DebugView::LightDirection,
+            "intensity" => DebugView::Intensity,
+            "medium" => DebugView::Medium,
+            _ => return None,
+        })
+    }
+
+    fn code(self) -> u32 {
+        self as u32
+    }
+}
+
+impl Features {
+    pub fn for_scene(scene: &Scene, tf: &TransferFunctions) -> Self {
+        let q = &scene.quality;
+        let refraction = match q.refraction {
+            Toggle::On => true,
+            Toggle::Off => false,
+            Toggle::Auto => !tf.eta_is_constant() || scene.eta_volume.is_some(),
+        };
+        Features {
+            refraction,
+            medium: !tf.medium_is_white(),
+            light_filter: q.light_filter && scene.light.softness > 0.0,
+            intensity_correction: refraction && q.intensity_correction,
+            specular: refraction && q.specular && scene.shading.specular > 0.0,
+            clip: scene.clip.is_some(),
+            eta_volume: refraction && scene.eta_volume.is_some(),
+            orthographic: scene.camera.projection == Projection::Orthographic,
+        }
+    }
+
+    /// Every combination of the boolean features (for shader validation).
+    pub fn all_combinations() -> Vec<Features> {
+        (0u32..256)
+            .map(|bits| {
+                let b = |i: u32| bits & (1 << i) != 0;
+                Features {
+                    refraction: b(0),
+                    medium: b(1),
+                    light_filter: b(2),
+                    intensity_correction: b(3),
+                    specular: b(4),
+                    clip: b(5),
+                    eta_volume: b(6),
+                    orthographic: b(7),
+                }
+            })
+            .collect()
+    }
+
+    /// The `override` constants of this variant, as naga expects them.
+    pub fn constants(&self, debug: DebugView) -> Vec<(&'static str, f64)> {
+        let f = |b: bool| if b { 1.0 } else { 0.0 };
+        vec![
+            ("REFRACTION", f(self.refraction)),
+            ("MEDIUM", f(self.medium)),
+            ("LIGHT_FILTER", f(self.light_filter)),
+            ("INTENSITY_CORRECTION", f(self.intensity_correction)),
+            ("SPECULAR", f(self.specular)),
+            ("CLIP", f(self.clip)),
+            ("ETA_VOLUME", f(self.eta_volume)),
+            ("ORTHOGRAPHIC", f(self.orthographic)),
+            ("DEBUG_VIEW", debug.code() as f64),
+        ]
+    }
+
+    /// A short human-readable list, e.g. "refraction+medium+caustics".
+    pub fn describe(&self) -> String {
+        let mut v = Vec::new();
+        for (on, name) in [
+            (self.refraction, "refraction"),
+            (self.intensity_correction, "caustics"),
+            (self.medium, "medium"),
+            (self.light_filter, "soft-light"),
+            (self.specular, "specular"),
+            (self.clip, "clip"),
+            (self.eta_volume, "eta-volume"),
+        ] {
+            if on {
+                v.push(name);
+            }
+        }
+        if v.is_empty() {
+            "plain".into()
+        } else {
+            v.join("+")
+        }
+    }
+}

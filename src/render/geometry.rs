@@ -1,0 +1,174 @@
+//! Camera, planes and light in view space: everything that turns a scene into `Params`.
+//!
+//! World space is the volume's physical space centred on its bounding box (x right, y up,
+//! z back). View space has the camera at the origin, x right, y down and z forward, so that
+//! planes of constant z are parallel to the image plane and buffer rows match image rows.
+
+use glam::{Mat3, Mat4, Vec3, Vec4};
+
+use crate::scene::{Camera, Light, Projection, Scene};
+
+/// Light directions stay at least this far from the planes (z component of the unit
+/// direction): about 89°, the largest angle a scene may ask for.
+pub const MIN_LIGHT_DIR_Z: f32 = 0.017;
+/// View rays whose direction gets closer than this to the planes leave the sweep.
+pub const MIN_VIEW_DIR_Z: f32 = 0.02;
+/// Largest light value stored: far below the 16-bit float maximum (65504), far above any
+/// physical concentration the per-plane ratio clamp can build up in a few planes.
+pub const MAX_LIGHT_VALUE: f32 = 16384.0;
+/// Nearest plane distance for a camera inside the volume, in bounding radii.
+pub const NEAR_PLANE: f32 = 1e-3;
+/// More planes than this means a sample distance far below a voxel on a huge volume.
+pub const MAX_PLANES: u32 = 1 << 15;
+
+/// The view transform and plane sweep of one render.
+#[derive(Clone, Debug)]
+pub struct ViewSetup {
+    pub view_from_world: Mat4,
+    pub world_from_view: Mat4,
+    pub tex_from_world: Mat4,
+    /// Physical size of the volume (dims × spacing).
+    pub extent: Vec3,
+    pub radius: f32,
+    pub z_first: f32,
+    /// Distance between planes in world units (Δs).
+    pub step: f32,
+    pub planes: u32,
+    pub projection: [f32; 4],
+}
+
+pub fn camera_position(camera: &Camera, radius: f32) -> (Vec3, Vec3) {
+    let yaw = camera.yaw_deg.to_radians();
+    let pitch = camera.pitch_deg.clamp(-89.0, 89.0).to_radians();
+    let target = Vec3::from(camera.target) * radius;
+    let offset = Vec3::new(yaw.sin() * pitch.cos(), pitch.sin(), -yaw.cos() * pitch.cos());
+    (target + offset * camera.distance * radius, target)
+}
+
+impl ViewSetup {
+    pub fn new(scene: &Scene, dims: [usize; 3], spacing: [f32; 3], width: u32, height: u32) -> Result<Self, String> {
+        let extent = Vec3::new(
+            dims[0] as f32 * spacing[0],
+            dims[1] as f32 * spacing[1],
+            dims[2] as f32 * spacing[2],
+        );
+        let radius = extent.length() * 0.5;
+        let (eye, target) = camera_position(&scene.camera, radius);
+        let forward = (target - eye).normalize_or(Vec3::Z);
+        let right = Vec3::Y.cross(forward).normalize_or(Vec3::X);
+        let down = right.cross(forward);
+        let rotation = Mat3::from_cols(right, down, forward); // world_from_view rotation
+        let world_from_view = Mat4::from_translation(eye) * Mat4::from_mat3(rotation);
+        let view_from_world = world_from_view.inverse();
+        let tex_from_world = Mat4::from_scale(extent.recip()) * Mat4::from_translation(extent * 0.5);
+
+        let min_spacing = spacing.iter().copied().fold(f32::INFINITY, f32::min);
+        let step = scene.quality.sample_distance * min_spacing;
+        let (mut z_min, mut z_max) = (f32::INFINITY, f32::NEG_INFINITY);
+        for i in 0..8 {
+            let corner = Vec3::new(
+                if i & 1 == 0 { -0.5 } else { 0.5 },
+                if i & 2 == 0 { -0.5 } else { 0.5 },
+                if i & 4 == 0 { -0.5 } else { 0.5 },
+            ) * extent;
+            let z = view_from_world.transform_point3(corner).z;
+            z_min = z_min.min(z);
+            z_max = z_max.max(z);
+        }
+        let perspective = scene.camera.projection == Projection::Perspective;
+        if perspective {
+            z_min = z_min.max(NEAR_PLANE * radius);
+        }
+        if z_max <= z_min {
+            return Err("the volume is behind the camera".into());
+        }
+        let planes = ((z_max - z_min) / step).ceil() as u64 + 1;
+        if planes > MAX_PLANES as u64 {
+            return Err(format!(
+                "{planes} planes needed (more than {MAX_PLANES}); increase quality.sample_distance"
+            ));
+        }
+        let (w, h) = (width as f32, height as f32);
+        let f = if perspective {
+            (h * 0.5) / (scene.camera.fov_deg.to_radians() * 0.5).tan()
+        } else {
+            h / (2.0 * radius / scene.camera.zoom)
+        };
+        Ok(ViewSetup {
+            view_from_world,
+            world_from_view,
+            tex_from_world,
+            extent,
+            radius,
+            z_first: z_min,
+            step,
+            planes: planes as u32,
+            projection: [f, f, w * 0.5, h * 0.5],
+        })
+    }
+
+    /// Volume texture coordinates of a view-space point.
+    pub fn volume_from_view(&self) -> Mat4 {
+        self.tex_from_world * self.world_from_view
+    }
+
+    /// Maps per-voxel central differences (f(p+h) − f(p−h) along each volume axis) to a
+    /// view-space gradient.
+    pub fn gradient_to_view(&self, spacing: [f32; 3]) -> Mat4 {
+        let rotation = Mat3::from_mat4(self.view_from_world);
+        let scale = Mat3::from_diagonal(Vec3::new(0.5 / spacing[0], 0.5 / spacing[1], 0.5 / spacing[2]));
+        Mat4::from_mat3(rotation * scale)
+    }
+
+    /// View-space plane (normal, offset) of a clip plane given in volume axes.
+    pub fn clip_plane(&self, normal: [f32; 3], offset: f32) -> Vec4 {
+        let n_world = Vec3::from(normal).normalize_or(Vec3::Y);
+        let n_view = Mat3::from_mat4(self.view_from_world) * n_world;
+        let eye = self.world_from_view.w_axis.truncate();
+        Vec4::new(n_view.x, n_view.y, n_view.z, n_world.dot(eye) - offset * self.radius)
+    }
+}
+
+/// Propagation direction of the light in view space (unit length, z > 0).
+pub fn light_direction(light: &Light) -> Vec3 {
+    let polar = light
+        .polar_deg
+        .clamp(0.0, crate::scene::MAX_LIGHT_POLAR_DEG)
+        .to_radians();
+    let azimuth = light.azimuth_deg.to_radians();
+    Vec3::new(-polar.sin() * azimuth.sin(), polar.sin() * azimuth.cos(), polar.cos())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::builtin;
+
+    #[test]
+    fn planes_cover_the_volume_front_to_back() {
+        let scene = builtin("ball-lens").unwrap().scene;
+        let v = ViewSetup::new(&scene, [64, 40, 64], [1.0; 3], 64, 64).unwrap();
+        assert!(v.z_first > 0.0);
+        // Sweep depth ≥ the box's smallest extent and ≤ its diagonal.
+        let depth = v.step * (v.planes - 1) as f32;
+        assert!(depth >= 40.0 && depth <= 2.0 * v.radius + v.step);
+        // The volume centre is straight ahead.
+        let centre = v.view_from_world.transform_point3(Vec3::ZERO);
+        assert!(centre.x.abs() < 1e-3 && centre.y.abs() < 1e-3 && centre.z > 0.0);
+        let tex = v.volume_from_view().transform_point3(centre);
+        assert!((tex - Vec3::splat(0.5)).length() < 1e-4);
+    }
+
+    #[test]
+    fn light_comes_from_the_top_at_azimuth_zero() {
+        let mut l = Light {
+            polar_deg: 30.0,
+            azimuth_deg: 0.0,
+            ..Light::default()
+        };
+        let d = light_direction(&l);
+        assert!(d.y > 0.0 && d.z > 0.0 && d.x.abs() < 1e-6); // travels down the image and away
+        l.polar_deg = 0.0;
+        assert!((light_direction(&l) - Vec3::Z).length() < 1e-6);
+    }
+}

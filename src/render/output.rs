@@ -1,0 +1,78 @@
+//! Rendered images and how they are written: 8-bit sRGB PNG or linear float EXR.
+
+use std::path::Path;
+
+/// A rendered image in linear radiance, row 0 at the top.
+#[derive(Clone, Debug)]
+pub struct RenderedImage {
+    pub width: u32,
+    pub height: u32,
+    pub pixels: Vec<[f32; 4]>,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum OutputError {
+    #[error("cannot write {path}: {message}")]
+    Write { path: String, message: String },
+    #[error("unknown output format for {0} (use .png or .exr)")]
+    Format(String),
+}
+
+pub fn linear_to_srgb(c: f32) -> f32 {
+    let c = c.clamp(0.0, 1.0);
+    if c <= 0.0031308 {
+        c * 12.92
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+impl RenderedImage {
+    /// 8-bit sRGB bytes (RGBA), values above 1 clipped.
+    pub fn to_srgb8(&self) -> Vec<u8> {
+        self.pixels
+            .iter()
+            .flat_map(|p| {
+                let q = |c: f32| (linear_to_srgb(c) * 255.0 + 0.5) as u8;
+                [q(p[0]), q(p[1]), q(p[2]), 255]
+            })
+            .collect()
+    }
+
+    /// Writes PNG (sRGB, 8 bit) or EXR (linear, 32-bit float) by the file extension.
+    pub fn save(&self, path: &Path) -> Result<(), OutputError> {
+        let ext = path
+            .extension()
+            .map(|e| e.to_string_lossy().to_lowercase())
+            .unwrap_or_default();
+        let err = |message: String| OutputError::Write {
+            path: path.display().to_string(),
+            message,
+        };
+        match ext.as_str() {
+            "png" => image::save_buffer(path, &self.to_srgb8(), self.width, self.height, image::ColorType::Rgba8)
+                .map_err(|e| err(e.to_string())),
+            "exr" => {
+                let w = self.width as usize;
+                exr::prelude::write_rgba_file(path, w, self.height as usize, |x, y| {
+                    let p = self.pixels[y * w + x];
+                    (p[0], p[1], p[2], p[3])
+                })
+                .map_err(|e| err(e.to_string()))
+            }
+            _ => Err(OutputError::Format(path.display().to_string())),
+        }
+    }
+
+    /// Counts of non-finite and negative channel values (rgb).
+    pub fn count_invalid(&self) -> (usize, usize) {
+        let rgb = self.pixels.iter().flat_map(|p| &p[..3]);
+        let non_finite = rgb.clone().filter(|v| !v.is_finite()).count();
+        let negative = rgb.filter(|v| **v < 0.0).count();
+        (non_finite, negative)
+    }
+
+    pub fn max_value(&self) -> f32 {
+        self.pixels.iter().flat_map(|p| &p[..3]).fold(0.0f32, |m, v| m.max(*v))
+    }
+}

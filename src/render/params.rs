@@ -1,0 +1,68 @@
+//! The uniform block shared with the shaders (`Params` in `shaders/common.wgsl`).
+
+use bytemuck::{Pod, Zeroable};
+
+/// Mirrors `struct Params` in `shaders/common.wgsl` field by field (std140: mat4 and vec4 only).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct Params {
+    pub volume_from_view: [[f32; 4]; 4],
+    pub gradient_to_view: [[f32; 4]; 4],
+    pub world_from_view: [[f32; 4]; 4],
+    pub clip_plane: [f32; 4],
+    pub projection: [f32; 4],
+    pub plane: [f32; 4],
+    pub light_dir: [f32; 4],
+    pub light_color: [f32; 4],
+    pub shading: [f32; 4],
+    pub size: [f32; 4],
+    pub texel: [f32; 4],
+    pub background: [f32; 4],
+    pub limits: [f32; 4],
+}
+
+/// Mirrors `struct Immediates` (push constants).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct Immediates {
+    pub plane_index: u32,
+    pub seed: u32,
+    pub pad: [u32; 2],
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The WGSL struct must have the same size and member offsets as the Rust one.
+    #[test]
+    fn params_layout_matches_wgsl() {
+        let src = format!(
+            "{}\n@compute @workgroup_size(1) fn main() {{ _ = P.limits; _ = I.seed; }}",
+            crate::render::shaders::COMMON
+        );
+        let module = naga::front::wgsl::parse_str(&src).expect("common.wgsl parses");
+        let mut layouter = naga::proc::Layouter::default();
+        layouter.update(module.to_ctx()).unwrap();
+        let find = |name: &str| {
+            module
+                .types
+                .iter()
+                .find(|(_, t)| t.name.as_deref() == Some(name))
+                .map(|(h, t)| (h, t.clone()))
+                .unwrap()
+        };
+        let (h, ty) = find("Params");
+        assert_eq!(layouter[h].size as usize, std::mem::size_of::<Params>());
+        let naga::TypeInner::Struct { members, .. } = ty.inner else {
+            panic!()
+        };
+        let expected = [0, 64, 128, 192, 208, 224, 240, 256, 272, 288, 304, 320, 336];
+        let offsets: Vec<u32> = members.iter().map(|m| m.offset).collect();
+        assert_eq!(offsets, expected);
+        assert_eq!(std::mem::offset_of!(Params, limits), 336);
+        assert_eq!(std::mem::offset_of!(Params, clip_plane), 192);
+        let (h, _) = find("Immediates");
+        assert_eq!(layouter[h].size as usize, std::mem::size_of::<Immediates>());
+    }
+}

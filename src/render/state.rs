@@ -1,0 +1,296 @@
+//! The sweep itself: ping-pong state buffers, the per-plane dispatches and read-back
+//! (Algorithm 1).
+
+use std::io::IsTerminal;
+use std::sync::Arc;
+
+use ash::vk;
+use glam::Mat4;
+
+use crate::gpu::{
+    Buffer, ComputePipeline, Context, DescriptorSet, Format, GpuError, Image, ImageDesc, Recorder, Resource, Timestamps,
+};
+
+use super::geometry::{light_direction, ViewSetup, MAX_LIGHT_VALUE, MIN_LIGHT_DIR_Z, MIN_VIEW_DIR_Z};
+use super::shaders::slot;
+use super::upload::{SceneTextures, ETA_TABLE_SIZE};
+use super::{
+    background, DebugView, Features, Immediates, Params, PreparedScene, RenderError, RenderOutput, RenderRequest,
+    RenderStats, RenderedImage,
+};
+
+/// Planes recorded per submission: keeps each submission short (progress, responsiveness,
+/// watchdogs) while the per-submission overhead stays negligible.
+const PLANES_PER_SUBMIT: u32 = 128;
+const WORKGROUP: u32 = 8;
+
+/// The six state buffers of Algorithm 1, in binding order; `None` where the scene does not
+/// need it (a 1×1 placeholder is bound instead).
+const STATE: [(&str, Format); 6] = [
+    ("light", Format::R16G16B16A16_SFLOAT),
+    ("light direction", Format::R32G32B32A32_SFLOAT),
+    ("view position", Format::R32G32B32A32_SFLOAT),
+    ("view direction", Format::R32G32B32A32_SFLOAT),
+    ("colour+opacity", Format::R16G16B16A16_SFLOAT),
+    ("medium", Format::R16G16B16A16_SFLOAT),
+];
+
+fn needed(features: &Features, index: usize) -> bool {
+    match index {
+        1 | 2 => features.refraction,
+        5 => features.medium,
+        _ => true,
+    }
+}
+
+fn cols(m: Mat4) -> [[f32; 4]; 4] {
+    m.to_cols_array_2d()
+}
+
+fn make_params(prepared: &PreparedScene, view: &ViewSetup, req: &RenderRequest, env_levels: u32) -> Params {
+    let scene = &prepared.scene;
+    let vol = &prepared.volume;
+    let ld = light_direction(&scene.light);
+    let l = &scene.light;
+    let clip = scene
+        .clip
+        .as_ref()
+        .map(|c| view.clip_plane(c.normal, c.offset).to_array())
+        .unwrap_or([0.0, 0.0, 0.0, -1.0]);
+    let env_intensity = match &scene.environment {
+        crate::scene::Environment::Studio { intensity } | crate::scene::Environment::Image { intensity, .. } => {
+            *intensity
+        }
+        crate::scene::Environment::Color { .. } => 1.0,
+    };
+    let rotation = Mat4::from_mat3(glam::Mat3::from_mat4(view.world_from_view));
+    Params {
+        volume_from_view: cols(view.volume_from_view()),
+        gradient_to_view: cols(view.gradient_to_view(vol.spacing)),
+        world_from_view: cols(rotation),
+        clip_plane: clip,
+        projection: view.projection,
+        plane: [
+            view.z_first,
+            view.step,
+            view.planes as f32,
+            scene.quality.sample_distance,
+        ],
+        light_dir: [ld.x, ld.y, ld.z, l.softness * view.step],
+        light_color: [
+            l.color[0] * l.intensity,
+            l.color[1] * l.intensity,
+            l.color[2] * l.intensity,
+            scene.quality.max_intensity_ratio,
+        ],
+        shading: [
+            scene.shading.specular,
+            scene.shading.roughness,
+            scene.quality.termination_opacity,
+            env_intensity,
+        ],
+        size: [
+            req.width as f32,
+            req.height as f32,
+            1.0 / req.width as f32,
+            1.0 / req.height as f32,
+        ],
+        texel: [
+            1.0 / vol.dims[0] as f32,
+            1.0 / vol.dims[1] as f32,
+            1.0 / vol.dims[2] as f32,
+            ETA_TABLE_SIZE as f32,
+        ],
+        background: background(&scene.environment),
+        limits: [MIN_LIGHT_DIR_Z, MIN_VIEW_DIR_Z, MAX_LIGHT_VALUE, env_levels as f32],
+    }
+}
+
+fn progress_bar(show: bool, planes: u64) -> Option<indicatif::ProgressBar> {
+    if !show || !std::io::stderr().is_terminal() {
+        return None;
+    }
+    let bar = indicatif::ProgressBar::new(planes);
+    if let Ok(style) = indicatif::ProgressStyle::with_template("{spinner} planes {pos}/{len} {wide_bar} {eta}") {
+        bar.set_style(style);
+    }
+    Some(bar)
+}
+
+pub(super) fn run(
+    ctx: &Arc<Context>,
+    prepared: &PreparedScene,
+    req: &RenderRequest,
+    features: Features,
+    pipelines: &[Arc<ComputePipeline>; 3],
+) -> Result<RenderOutput, RenderError> {
+    let (w, h) = (req.width, req.height);
+    let max_2d = ctx.limits().max_image_dimension2_d;
+    if w == 0 || h == 0 || w > max_2d || h > max_2d {
+        return Err(RenderError::Setup(format!(
+            "image size {w}×{h} must be between 1×1 and {max_2d}×{max_2d} on this device"
+        )));
+    }
+    let vol = &prepared.volume;
+    let view = ViewSetup::new(&prepared.scene, vol.dims, vol.spacing, w, h).map_err(RenderError::Setup)?;
+    let planes_run = if req.debug_view == DebugView::Image {
+        view.planes
+    } else {
+        1 + (req.debug_depth.clamp(0.0, 1.0) * (view.planes - 1) as f32).round() as u32
+    };
+
+    let mut rec = Recorder::new(ctx, "render: upload and init")?;
+    let window = prepared.window();
+    let eta = match (&prepared.eta_volume, features.eta_volume) {
+        (Some(v), true) => Some((v.as_ref(), v.value_range)),
+        _ => None,
+    };
+    let mut textures = SceneTextures::upload(
+        ctx,
+        &mut rec,
+        vol,
+        window,
+        eta,
+        &prepared.tf,
+        prepared.scene.quality.sample_distance,
+        prepared.env.as_ref(),
+    )?;
+
+    let mut uniform = Buffer::new_upload(
+        ctx,
+        "params",
+        std::mem::size_of::<Params>() as u64,
+        vk::BufferUsageFlags::UNIFORM_BUFFER,
+    )?;
+    uniform.write(bytemuck::bytes_of(&make_params(
+        prepared,
+        &view,
+        req,
+        textures.env_levels,
+    )))?;
+
+    // Ping-pong state: state[side][k]; placeholders for buffers the scene does not need.
+    let mut state_bytes = 0u64;
+    let mut state: [Vec<Image>; 2] = [Vec::new(), Vec::new()];
+    for (side, images) in state.iter_mut().enumerate() {
+        for (k, (name, format)) in STATE.iter().enumerate() {
+            let (iw, ih) = if needed(&features, k) { (w, h) } else { (1, 1) };
+            let label = format!("{name} {}", ["A", "B"][side]);
+            let img = Image::new(ctx, ImageDesc::storage_2d(&label, *format, iw, ih))?;
+            let texel_bytes = if *format == Format::R32G32B32A32_SFLOAT { 16 } else { 8 };
+            state_bytes += (iw * ih) as u64 * texel_bytes;
+            images.push(img);
+        }
+    }
+    let output = Image::new(ctx, ImageDesc::storage_2d("output", Format::R32G32B32A32_SFLOAT, w, h))?;
+    let mut all: Vec<&Image> = state.iter().flatten().collect();
+    all.push(&output);
+    rec.init_layout(&all);
+
+    // sets[p][r]: pipeline p, reading side r and writing side 1 - r.
+    let mut sets: Vec<[DescriptorSet; 2]> = Vec::new();
+    for p in pipelines {
+        let make = |read: usize| -> Result<DescriptorSet, GpuError> {
+            let set = DescriptorSet::new(ctx, p, &format!("{} reads {}", p.label, ["A", "B"][read]))?;
+            let t = &textures;
+            let mut writes = vec![
+                (slot::PARAMS, Resource::Uniform(&uniform)),
+                (slot::VOLUME, Resource::Image(&t.volume)),
+                (slot::LINEAR_CLAMP, Resource::Sampler(&t.linear_clamp)),
+                (slot::VOLUME_SAMPLER, Resource::Sampler(&t.volume_sampler)),
+                (
+                    slot::ETA_VOLUME,
+                    Resource::Image(t.eta_volume.as_ref().unwrap_or(&t.volume)),
+                ),
+                (slot::PARTICLE_TABLE, Resource::Image(&t.particle_table)),
+                (slot::MEDIUM_TABLE, Resource::Image(&t.medium_table)),
+                (slot::ETA_TABLE, Resource::Image(&t.eta_table)),
+                (slot::ENV, Resource::Image(&t.env)),
+                (slot::ENV_SAMPLER, Resource::Sampler(&t.env_sampler)),
+                (slot::IMAGE_OUT, Resource::Image(&output)),
+            ];
+            for (k, (input, output)) in state[read].iter().zip(&state[1 - read]).enumerate() {
+                writes.push((slot::STATE_IN + k as u32, Resource::Image(input)));
+                writes.push((slot::STATE_OUT + k as u32, Resource::Image(output)));
+            }
+            set.write(&writes)?;
+            Ok(set)
+        };
+        sets.push([make(0)?, make(1)?]);
+    }
+    let groups = [w.div_ceil(WORKGROUP), h.div_ceil(WORKGROUP), 1];
+    let push = |plane: u32| Immediates {
+        plane_index: plane,
+        seed: 0x9e37_79b9,
+        pad: [0; 2],
+    };
+
+    // Init writes side A (set reading B); plane i reads side (i-1) % 2.
+    rec.dispatch(&pipelines[0], &sets[0][1], bytemuck::bytes_of(&push(0)), groups);
+    rec.compute_to_compute();
+    let bar = progress_bar(req.progress, planes_run as u64);
+    let mut gpu_ms = 0.0;
+    let mut plane = 1u32;
+    let mut rec = Some(rec);
+    loop {
+        let mut r = match rec.take() {
+            Some(r) => r,
+            None => Recorder::new(ctx, "render: planes")?,
+        };
+        let ts = Timestamps::new(ctx, 2)?;
+        r.reset_timestamps(&ts);
+        r.timestamp(&ts, 0);
+        let end = (plane + PLANES_PER_SUBMIT).min(planes_run);
+        while plane < end {
+            let read = ((plane - 1) % 2) as usize;
+            r.dispatch(&pipelines[1], &sets[1][read], bytemuck::bytes_of(&push(plane)), groups);
+            r.compute_to_compute();
+            plane += 1;
+        }
+        let last = plane >= planes_run;
+        let readback = if last {
+            let read = ((planes_run - 1) % 2) as usize;
+            r.dispatch(
+                &pipelines[2],
+                &sets[2][read],
+                bytemuck::bytes_of(&push(planes_run)),
+                groups,
+            );
+            r.compute_to_transfer();
+            let buf = Buffer::new_readback(ctx, "output readback", (w * h) as u64 * 16)?;
+            r.copy_to_buffer(&output, &buf);
+            Some(buf)
+        } else {
+            None
+        };
+        r.timestamp(&ts, 1);
+        r.submit_and_wait()?;
+        textures.release_staging();
+        gpu_ms += ts.read_ms()?.iter().sum::<f64>();
+        if let Some(b) = &bar {
+            b.set_position(plane as u64);
+        }
+        if let Some(buf) = readback {
+            if let Some(b) = bar {
+                b.finish_and_clear();
+            }
+            let bytes = buf.read()?;
+            let pixels: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(bytes);
+            return Ok(RenderOutput {
+                image: RenderedImage {
+                    width: w,
+                    height: h,
+                    pixels,
+                },
+                stats: RenderStats {
+                    features,
+                    planes: view.planes,
+                    planes_run,
+                    gpu_ms,
+                    ms_per_plane: gpu_ms / planes_run.max(1) as f64,
+                    state_bytes,
+                },
+            });
+        }
+    }
+}

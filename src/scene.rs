@@ -1,0 +1,356 @@
+//! Everything one image depends on: volume source, transfer functions, camera, light, clip
+//! plane, environment and quality. Scenes are TOML files (see README) or built in ([`builtin`]).
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::transfer::{TransferError, TransferFunctions};
+use crate::volume::{self, raw::RawDesc, Volume, VolumeError};
+
+mod builtin;
+pub use builtin::{builtin, BuiltinScene, BUILTIN_SCENES};
+
+/// The largest light angle off the view direction. The planes are parallel to the image, so
+/// light at 90° would travel inside one plane and never reach the next: the backward lookup
+/// distance grows as tan(angle), 57 plane spacings at 89°. Artefacts become visible beyond ~85°.
+pub const MAX_LIGHT_POLAR_DEG: f32 = 89.0;
+
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    #[error("cannot read scene file {path}: {source}")]
+    Io { path: PathBuf, source: std::io::Error },
+    #[error("scene file {path} is invalid: {message}")]
+    Parse { path: PathBuf, message: String },
+    #[error("invalid scene: {0}")]
+    Invalid(String),
+    #[error(transparent)]
+    Volume(#[from] VolumeError),
+    #[error(transparent)]
+    Transfer(#[from] TransferError),
+}
+
+/// Where the volume comes from.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
+pub enum VolumeSource {
+    /// A procedural volume generated in code (`caustica scenes` lists them).
+    Builtin {
+        name: String,
+        #[serde(default = "default_resolution")]
+        resolution: usize,
+    },
+    /// A file whose format is known from its extension (`.nrrd`, `.nhdr`).
+    File { path: PathBuf },
+    /// Raw samples: dims, scalar type, endianness and spacing given here.
+    Raw(RawDesc),
+}
+
+fn default_resolution() -> usize {
+    128
+}
+
+impl VolumeSource {
+    pub fn load(&self) -> Result<Volume, VolumeError> {
+        match self {
+            VolumeSource::Builtin { name, resolution } => volume::procedural::generate(name, *resolution),
+            VolumeSource::File { path } => volume::load(path),
+            VolumeSource::Raw(desc) => volume::raw::load_raw(desc),
+        }
+    }
+
+    fn resolve_paths(&mut self, base: &Path) {
+        match self {
+            VolumeSource::File { path } => *path = base.join(&*path),
+            VolumeSource::Raw(desc) => desc.path = base.join(&desc.path),
+            VolumeSource::Builtin { .. } => {}
+        }
+    }
+}
+
+/// Transfer functions inline, or the path of a JSON file.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum TransferSource {
+    File(PathBuf),
+    Inline(TransferFunctions),
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum Projection {
+    #[default]
+    Perspective,
+    Orthographic,
+}
+
+/// An orbit camera around the volume's centre. Distances are in units of the volume's
+/// bounding-sphere radius, so scenes do not depend on the voxel spacing.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Camera {
+    pub yaw_deg: f32,
+    pub pitch_deg: f32,
+    pub distance: f32,
+    pub fov_deg: f32,
+    pub projection: Projection,
+    /// Orthographic only: the view shows `2 / zoom` bounding radii vertically.
+    pub zoom: f32,
+    /// Look-at point, offset from the volume's centre in bounding radii (x right, y up, z back).
+    pub target: [f32; 3],
+}
+
+impl Default for Camera {
+    fn default() -> Self {
+        Camera {
+            yaw_deg: 0.0,
+            pitch_deg: 20.0,
+            distance: 3.0,
+            fov_deg: 40.0,
+            projection: Projection::Perspective,
+            zoom: 1.0,
+            target: [0.0; 3],
+        }
+    }
+}
+
+/// One distant light, given relative to the camera: `polar_deg` off the view direction (0 =
+/// from behind the viewer, at most [`MAX_LIGHT_POLAR_DEG`]), `azimuth_deg` around it (0 = from
+/// the top of the image, 90 = from the right).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Light {
+    pub polar_deg: f32,
+    pub azimuth_deg: f32,
+    pub color: [f32; 3],
+    pub intensity: f32,
+    /// Angular spread of the source: blur radius per unit distance travelled (0 = hard shadows).
+    pub softness: f32,
+}
+
+/// Largest softness: a blur radius equal to the distance travelled (a 45° half-angle source).
+pub const MAX_SOFTNESS: f32 = 1.0;
+
+impl Default for Light {
+    fn default() -> Self {
+        Light {
+            polar_deg: 30.0,
+            azimuth_deg: 0.0,
+            color: [1.0; 3],
+            intensity: 1.0,
+            softness: 0.05,
+        }
+    }
+}
+
+/// Specular (Cook–Torrance) shading parameters.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Shading {
+    pub specular: f32,
+    pub roughness: f32,
+}
+
+impl Default for Shading {
+    fn default() -> Self {
+        Shading {
+            specular: 1.0,
+            roughness: 0.2,
+        }
+    }
+}
+
+/// A plane that zeroes opacity on its positive side and leaves every other property alone
+/// (paper Fig. 9). `normal` in volume axes, `offset` from the centre in bounding radii.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ClipPlane {
+    pub normal: [f32; 3],
+    #[serde(default)]
+    pub offset: f32,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
+pub enum Environment {
+    /// A procedural studio: sky gradient over a checkered floor.
+    Studio {
+        #[serde(default = "one")]
+        intensity: f32,
+    },
+    /// A constant background colour.
+    Color { color: [f32; 3] },
+    /// An equirectangular image (PNG or EXR).
+    Image {
+        path: PathBuf,
+        #[serde(default = "one")]
+        intensity: f32,
+    },
+}
+
+fn one() -> f32 {
+    1.0
+}
+
+impl Default for Environment {
+    fn default() -> Self {
+        Environment::Studio { intensity: 1.0 }
+    }
+}
+
+/// A feature toggle: `auto` enables it when the scene needs it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum Toggle {
+    #[default]
+    Auto,
+    On,
+    Off,
+}
+
+/// The speed/accuracy knobs.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Quality {
+    /// Distance between planes as a multiple of the smallest voxel dimension.
+    pub sample_distance: f32,
+    pub refraction: Toggle,
+    pub intensity_correction: bool,
+    pub light_filter: bool,
+    pub specular: bool,
+    /// View rays stop compositing once their opacity exceeds this.
+    pub termination_opacity: f32,
+    /// Per-plane clamp of the intensity-law ratio S_{i-1}/S_i and of its inverse; bounds the
+    /// brightening at focal points, where the back-projected area goes to zero.
+    pub max_intensity_ratio: f32,
+}
+
+impl Default for Quality {
+    fn default() -> Self {
+        Quality {
+            sample_distance: 1.0,
+            refraction: Toggle::Auto,
+            intensity_correction: true,
+            light_filter: true,
+            specular: true,
+            termination_opacity: 0.995,
+            max_intensity_ratio: 4.0,
+        }
+    }
+}
+
+/// A complete scene description.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    pub volume: VolumeSource,
+    /// Optional separate volume used as the source of η (paper Fig. 12e); same grid.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub eta_volume: Option<VolumeSource>,
+    /// Data values mapped to 0 and 1 of the transfer-function domain; default: the value range.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub window: Option<[f32; 2]>,
+    pub transfer: TransferSource,
+    #[serde(default)]
+    pub camera: Camera,
+    #[serde(default)]
+    pub light: Light,
+    #[serde(default)]
+    pub shading: Shading,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub clip: Option<ClipPlane>,
+    #[serde(default)]
+    pub environment: Environment,
+    #[serde(default)]
+    pub quality: Quality,
+}
+
+impl Scene {
+    /// Reads a TOML scene; relative paths are taken relative to the scene file.
+    pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let mut scene: Scene = toml::from_str(&text).map_err(|e| SceneError::Parse {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        })?;
+        let base = path.parent().unwrap_or(Path::new("."));
+        scene.volume.resolve_paths(base);
+        if let Some(v) = &mut scene.eta_volume {
+            v.resolve_paths(base);
+        }
+        if let TransferSource::File(p) = &scene.transfer {
+            scene.transfer = TransferSource::Inline(TransferFunctions::load(&base.join(p))?);
+        }
+        if let Environment::Image { path, .. } = &mut scene.environment {
+            *path = base.join(&*path);
+        }
+        scene.validate()?;
+        Ok(scene)
+    }
+
+    pub fn to_toml(&self) -> String {
+        toml::to_string_pretty(self).unwrap_or_default()
+    }
+
+    /// The transfer functions (file sources are resolved by [`Scene::load`]).
+    pub fn transfer_functions(&self) -> Result<TransferFunctions, SceneError> {
+        match &self.transfer {
+            TransferSource::Inline(tf) => Ok(tf.clone()),
+            TransferSource::File(p) => Ok(TransferFunctions::load(p)?),
+        }
+    }
+
+    /// Range checks for everything a user can type.
+    pub fn validate(&self) -> Result<(), SceneError> {
+        let bad = |m: String| Err(SceneError::Invalid(m));
+        if let TransferSource::Inline(tf) = &self.transfer {
+            tf.validate()?;
+        }
+        let q = &self.quality;
+        if !(q.sample_distance.is_finite() && (0.01..=16.0).contains(&q.sample_distance)) {
+            return bad(format!(
+                "quality.sample_distance {} must be in [0.01, 16]",
+                q.sample_distance
+            ));
+        }
+        if !(q.max_intensity_ratio.is_finite() && q.max_intensity_ratio >= 1.0) {
+            return bad("quality.max_intensity_ratio must be ≥ 1".into());
+        }
+        if !(0.0..=1.0).contains(&q.termination_opacity) {
+            return bad("quality.termination_opacity must be in [0, 1]".into());
+        }
+        let l = &self.light;
+        if !(0.0..=MAX_LIGHT_POLAR_DEG).contains(&l.polar_deg) {
+            return bad(format!(
+                "light.polar_deg {} must be in [0, {MAX_LIGHT_POLAR_DEG}]: the light must be in the viewer's hemisphere",
+                l.polar_deg
+            ));
+        }
+        if !(0.0..=MAX_SOFTNESS).contains(&l.softness) {
+            return bad(format!("light.softness {} must be in [0, {MAX_SOFTNESS}]", l.softness));
+        }
+        if l.color.iter().chain([&l.intensity]).any(|c| !c.is_finite() || *c < 0.0) {
+            return bad("light colour and intensity must be finite and ≥ 0".into());
+        }
+        let c = &self.camera;
+        let camera_ok =
+            c.distance.is_finite() && c.distance > 0.0 && (1.0..=170.0).contains(&c.fov_deg) && c.zoom > 0.0;
+        if !camera_ok {
+            return bad("camera: distance and zoom must be > 0 and fov_deg in [1, 170]".into());
+        }
+        if let Some(w) = self.window {
+            if !(w[0].is_finite() && w[1].is_finite() && w[1] > w[0]) {
+                return bad(format!("window {w:?} must be two finite values, low < high"));
+            }
+        }
+        if let Some(clip) = &self.clip {
+            if clip.normal.iter().all(|v| *v == 0.0) || clip.normal.iter().any(|v| !v.is_finite()) {
+                return bad("clip.normal must be a finite non-zero vector".into());
+            }
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,320 @@
+//! Scalar volumes on a regular grid: the in-memory type, its errors and format dispatch.
+
+mod decode;
+pub mod nrrd;
+pub mod procedural;
+pub mod raw;
+#[cfg(test)]
+mod test_support;
+
+use std::path::{Path, PathBuf};
+
+pub use raw::{Endian, RawDesc, ScalarType};
+
+/// Largest voxel count any loader or generator accepts (2^31). Checked before allocating,
+/// so a corrupt or hostile header cannot request absurd amounts of memory.
+pub const MAX_VOXELS: usize = 1 << 31;
+
+/// A scalar volume on a regular grid. x fastest, then y, then z.
+/// Axes: x right, y UP, z depth (back).
+#[derive(Clone, Debug)]
+pub struct Volume {
+    /// Number of voxels along x, y, z.
+    pub dims: [usize; 3],
+    /// Physical size of a voxel along x, y, z (mm or any unit; only ratios matter).
+    pub spacing: [f32; 3],
+    /// `dims[0] * dims[1] * dims[2]` samples, x fastest.
+    pub data: Vec<f32>,
+    /// Minimum and maximum of `data`.
+    pub value_range: [f32; 2],
+}
+
+impl Volume {
+    /// Validates the grid (dims ≥ 1, sample count, finite positive spacing, finite samples)
+    /// and computes the value range.
+    pub fn new(dims: [usize; 3], spacing: [f32; 3], data: Vec<f32>) -> Result<Volume, VolumeError> {
+        let expected = checked_voxel_count(dims)?;
+        if data.len() != expected {
+            return Err(VolumeError::SizeMismatch {
+                expected,
+                actual: data.len(),
+            });
+        }
+        if !spacing.iter().all(|s| s.is_finite() && *s > 0.0) {
+            return Err(VolumeError::InvalidSpacing(spacing));
+        }
+        let non_finite = data.iter().filter(|v| !v.is_finite()).count();
+        if non_finite > 0 {
+            return Err(VolumeError::NonFinite { count: non_finite });
+        }
+        let value_range = value_range(&data);
+        Ok(Volume {
+            dims,
+            spacing,
+            data,
+            value_range,
+        })
+    }
+
+    pub fn voxel_count(&self) -> usize {
+        self.data.len()
+    }
+
+    /// Sample at integer voxel indices. Panics if an index is outside `dims`, like slice indexing.
+    pub fn get(&self, x: usize, y: usize, z: usize) -> f32 {
+        self.data[x + self.dims[0] * (y + self.dims[1] * z)]
+    }
+
+    /// Trilinear sample at continuous voxel coordinates, voxel centres at integer coordinates.
+    /// Outside `[-0.5, dims - 0.5]` on any axis the result is 0.0 (air); inside, neighbours
+    /// past the last voxel centre are clamped to the edge voxel.
+    pub fn sample_trilinear(&self, p: [f32; 3]) -> f32 {
+        let mut lo = [0usize; 3];
+        let mut hi = [0usize; 3];
+        let mut frac = [0.0f32; 3];
+        for axis in 0..3 {
+            let coord = p[axis];
+            let upper = self.dims[axis] as f32 - 0.5;
+            // Written as a negated range test so NaN coordinates also count as outside.
+            if !(coord >= -0.5 && coord <= upper) {
+                return 0.0;
+            }
+            let base = coord.floor();
+            frac[axis] = coord - base;
+            let last = self.dims[axis] - 1;
+            lo[axis] = if base < 0.0 { 0 } else { (base as usize).min(last) };
+            hi[axis] = ((base + 1.0) as usize).min(last);
+        }
+        let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
+        let row = |y: usize, z: usize| lerp(self.get(lo[0], y, z), self.get(hi[0], y, z), frac[0]);
+        let plane = |z: usize| lerp(row(lo[1], z), row(hi[1], z), frac[1]);
+        lerp(plane(lo[2]), plane(hi[2]), frac[2])
+    }
+
+    pub fn min_spacing(&self) -> f32 {
+        self.spacing.iter().copied().fold(f32::INFINITY, f32::min)
+    }
+
+    /// Physical size of the whole grid: `dims * spacing` per axis.
+    pub fn extent(&self) -> [f32; 3] {
+        [0, 1, 2].map(|a| self.dims[a] as f32 * self.spacing[a])
+    }
+
+    /// Maps values through the window `[lo, hi]` to [0, 1] (clamped) and quantises to u16
+    /// (0..=65535, round to nearest). An empty or inverted window acts as a threshold at `lo`.
+    pub fn normalized_u16(&self, window: [f32; 2]) -> Vec<u16> {
+        let [lo, hi] = window;
+        let width = hi - lo;
+        let usable = width.is_finite() && width > 0.0;
+        self.data
+            .iter()
+            .map(|&v| {
+                let t = if usable {
+                    (v - lo) / width
+                } else if v > lo {
+                    1.0
+                } else {
+                    0.0
+                };
+                (t.clamp(0.0, 1.0) * 65535.0).round() as u16
+            })
+            .collect()
+    }
+}
+
+/// Loads a volume file, choosing the reader by extension (`.nrrd`, `.nhdr`).
+pub fn load(path: &Path) -> Result<Volume, VolumeError> {
+    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    match ext.as_deref() {
+        Some("nrrd") | Some("nhdr") => nrrd::load_nrrd(path),
+        _ => Err(VolumeError::UnknownFormat {
+            path: path.to_path_buf(),
+        }),
+    }
+}
+
+/// Voxel count of `dims`, rejecting zero-sized axes and anything above [`MAX_VOXELS`].
+pub fn checked_voxel_count(dims: [usize; 3]) -> Result<usize, VolumeError> {
+    if dims.contains(&0) {
+        return Err(VolumeError::InvalidDims(dims));
+    }
+    match dims.iter().try_fold(1usize, |acc, &d| acc.checked_mul(d)) {
+        Some(count) if count <= MAX_VOXELS => Ok(count),
+        _ => Err(VolumeError::TooLarge {
+            dims,
+            limit: MAX_VOXELS,
+        }),
+    }
+}
+
+/// `[min, max]` of non-empty finite data.
+pub(crate) fn value_range(data: &[f32]) -> [f32; 2] {
+    data.iter().fold([f32::INFINITY, f32::NEG_INFINITY], |[lo, hi], &v| {
+        [lo.min(v), hi.max(v)]
+    })
+}
+
+/// "10×10×10"
+pub(crate) fn dims_text(dims: &[usize; 3]) -> String {
+    format!("{}×{}×{}", dims[0], dims[1], dims[2])
+}
+
+fn voxel_product(dims: &[usize; 3]) -> u128 {
+    dims.iter().map(|&d| d as u128).product()
+}
+
+fn line_text(line: &Option<usize>) -> String {
+    line.map(|l| format!(" line {l}")).unwrap_or_default()
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum VolumeError {
+    #[error("I/O error on {}: {source}", path.display())]
+    Io { path: PathBuf, source: std::io::Error },
+    #[error("volume data has {actual} samples but its dims need {expected}")]
+    SizeMismatch { expected: usize, actual: usize },
+    #[error("volume contains {count} non-finite voxel values (NaN or infinity)")]
+    NonFinite { count: usize },
+    #[error("invalid volume dims {}: every dimension must be at least 1", dims_text(.0))]
+    InvalidDims([usize; 3]),
+    #[error("invalid voxel spacing {0:?}: every spacing must be finite and greater than 0")]
+    InvalidSpacing([f32; 3]),
+    #[error(
+        "volume dims {} = {} voxels exceed the limit of {limit} voxels",
+        dims_text(dims),
+        voxel_product(dims)
+    )]
+    TooLarge { dims: [usize; 3], limit: usize },
+    #[error(
+        "{kind} {} has {actual_bytes} bytes but {layout} need {expected_bytes} bytes",
+        path.display()
+    )]
+    Truncated {
+        kind: &'static str,
+        path: PathBuf,
+        expected_bytes: u64,
+        actual_bytes: u64,
+        layout: String,
+    },
+    #[error(
+        "{kind} {} has {actual_bytes} bytes but {layout} need only {expected_bytes} bytes: \
+         dims don't match the data",
+        path.display()
+    )]
+    ExtraData {
+        kind: &'static str,
+        path: PathBuf,
+        expected_bytes: u64,
+        actual_bytes: u64,
+        layout: String,
+    },
+    #[error("NRRD header of {}{}: {message}", path.display(), line_text(line))]
+    Header {
+        path: PathBuf,
+        line: Option<usize>,
+        message: String,
+    },
+    #[error(
+        "{}: unsupported NRRD encoding '{encoding}' (supported: raw, gzip, ascii)",
+        path.display()
+    )]
+    UnsupportedEncoding { path: PathBuf, encoding: String },
+    #[error(
+        "unsupported scalar type '{0}' (supported: u8, i8, u16, i16, u32, i32, f32, f64, \
+         also under their C and NRRD names)"
+    )]
+    UnsupportedType(String),
+    #[error("data of {}: {message}", path.display())]
+    Data { path: PathBuf, message: String },
+    #[error(
+        "unknown scene volume '{0}' (valid names: {names})",
+        names = procedural::SCENE_VOLUMES.join(", ")
+    )]
+    UnknownScene(String),
+    #[error(
+        "unknown volume format for {} (supported: .nrrd, .nhdr; raw files need dims and type, \
+         see RawDesc)",
+        path.display()
+    )]
+    UnknownFormat { path: PathBuf },
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ramp(dims: [usize; 3]) -> Volume {
+        let count = dims.iter().product();
+        let data = (0..count).map(|i| i as f32).collect();
+        Volume::new(dims, [1.0, 2.0, 0.5], data).expect("valid volume")
+    }
+
+    #[test]
+    fn new_validates_and_computes_range() {
+        let vol = ramp([2, 3, 4]);
+        assert_eq!(vol.voxel_count(), 24);
+        assert_eq!(vol.value_range, [0.0, 23.0]);
+        assert_eq!(vol.get(1, 2, 3), 23.0);
+        assert_eq!(vol.min_spacing(), 0.5);
+        assert_eq!(vol.extent(), [2.0, 6.0, 2.0]);
+
+        let err = Volume::new([2, 2, 2], [1.0; 3], vec![0.0; 7]).unwrap_err();
+        assert!(matches!(err, VolumeError::SizeMismatch { expected: 8, actual: 7 }));
+        let err = Volume::new([0, 2, 2], [1.0; 3], vec![]).unwrap_err();
+        assert!(matches!(err, VolumeError::InvalidDims(_)));
+        let err = Volume::new([1, 1, 1], [1.0, 0.0, 1.0], vec![0.0]).unwrap_err();
+        assert!(matches!(err, VolumeError::InvalidSpacing(_)));
+        let err = Volume::new([1, 1, 1], [1.0, f32::NAN, 1.0], vec![0.0]).unwrap_err();
+        assert!(matches!(err, VolumeError::InvalidSpacing(_)));
+        let data = vec![0.0, f32::NAN, f32::INFINITY, 1.0];
+        let err = Volume::new([4, 1, 1], [1.0; 3], data).unwrap_err();
+        assert!(matches!(err, VolumeError::NonFinite { count: 2 }));
+    }
+
+    #[test]
+    fn voxel_limit_is_checked_without_overflow() {
+        assert!(matches!(
+            checked_voxel_count([usize::MAX, 2, 2]),
+            Err(VolumeError::TooLarge { .. })
+        ));
+        assert!(checked_voxel_count([1 << 10, 1 << 10, 1 << 11]).is_ok());
+        let err = checked_voxel_count([1 << 10, 1 << 10, (1 << 11) + 1]).unwrap_err();
+        assert!(err.to_string().contains("1024×1024×2049"), "{err}");
+    }
+
+    #[test]
+    fn trilinear_matches_voxels_and_interpolates() {
+        let vol = ramp([3, 3, 3]);
+        assert_eq!(vol.sample_trilinear([1.0, 2.0, 0.0]), vol.get(1, 2, 0));
+        let mid = vol.sample_trilinear([0.5, 0.5, 0.5]);
+        let mut corners = 0.0;
+        for z in 0..2 {
+            for y in 0..2 {
+                for x in 0..2 {
+                    corners += vol.get(x, y, z);
+                }
+            }
+        }
+        assert!((mid - corners / 8.0).abs() < 1e-5);
+        // Between the last centre and the grid border the edge voxel is repeated.
+        assert_eq!(vol.sample_trilinear([2.4, 2.0, 2.0]), vol.get(2, 2, 2));
+        assert_eq!(vol.sample_trilinear([-0.4, 0.0, 0.0]), vol.get(0, 0, 0));
+        assert_eq!(vol.sample_trilinear([-0.6, 1.0, 1.0]), 0.0);
+        assert_eq!(vol.sample_trilinear([1.0, 2.6, 1.0]), 0.0);
+        assert_eq!(vol.sample_trilinear([1.0, f32::NAN, 1.0]), 0.0);
+    }
+
+    #[test]
+    fn normalized_u16_windows_and_rounds() {
+        let vol = Volume::new([5, 1, 1], [1.0; 3], vec![-1.0, 0.0, 0.5, 1.0, 2.0]).expect("valid");
+        assert_eq!(vol.normalized_u16([0.0, 1.0]), vec![0, 0, 32768, 65535, 65535]);
+        assert_eq!(vol.normalized_u16([0.5, 0.5]), vec![0, 0, 0, 65535, 65535]);
+    }
+
+    #[test]
+    fn load_rejects_unknown_extension() {
+        let err = load(Path::new("head.raw")).unwrap_err();
+        let text = err.to_string();
+        assert!(text.contains("head.raw") && text.contains(".nrrd, .nhdr"), "{text}");
+    }
+}
