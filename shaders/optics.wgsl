@@ -3,7 +3,15 @@
 // Unpolarised Fresnel reflectance for light going from index n1 into n2 at incidence cosine
 // cos_i. Exactly 0 when n1 == n2, so homogeneous regions have no highlight; 1 under total
 // internal reflection.
+// Index steps below this relative size count as no interface. Interpolating a constant η
+// table can leave a last-bit difference, and with n1 > n2 by one ulp the total-internal-
+// reflection branch would turn grazing rays into perfect mirrors.
+const FRESNEL_MIN_RELATIVE_STEP: f32 = 1e-5;
+
 fn fresnel_dielectric(cos_i: f32, n1: f32, n2: f32) -> f32 {
+    if (abs(n1 - n2) <= FRESNEL_MIN_RELATIVE_STEP * max(n1, n2)) {
+        return 0.0;
+    }
     let c = clamp(cos_i, 0.0, 1.0);
     let eta = n1 / n2;
     let sin_t2 = eta * eta * (1.0 - c * c);

@@ -416,6 +416,24 @@ impl Context {
         self.canary.errors.load(Ordering::SeqCst)
     }
 
+    /// Makes one deliberately invalid Vulkan call (a sampler with anisotropy, a feature this
+    /// crate never enables) so tests can check that the validation canary counts errors.
+    /// Returns the number of errors recorded by that call.
+    #[doc(hidden)]
+    pub fn provoke_validation_error(&self) -> u64 {
+        let before = self.validation_errors();
+        let info = vk::SamplerCreateInfo::default()
+            .anisotropy_enable(true)
+            .max_anisotropy(4.0);
+        // SAFETY: lavapipe and other drivers accept the call (anisotropy is widely supported);
+        // only the validation layer objects because the feature was not enabled. The sampler
+        // is destroyed at once.
+        if let Ok(s) = unsafe { self.device.create_sampler(&info, None) } {
+            unsafe { self.device.destroy_sampler(s, None) };
+        }
+        self.validation_errors() - before
+    }
+
     /// The validation messages reported so far.
     pub fn validation_messages(&self) -> Vec<String> {
         self.canary.messages.lock().map(|m| m.clone()).unwrap_or_default()
