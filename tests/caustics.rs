@@ -100,7 +100,10 @@ fn without_intensity_correction_there_is_no_caustic() {
     for depth in [0.5f32, 0.7, 0.75, 0.8, 0.9, 1.0] {
         let out = gpu.debug(&p, SIZE, DebugView::Light, depth);
         let max = out.image.max_value();
-        assert!(max <= 1.0 + 1e-3, "light {max} at depth {depth} without intensity correction");
+        assert!(
+            max <= 1.0 + 1e-3,
+            "light {max} at depth {depth} without intensity correction"
+        );
     }
 }
 
@@ -117,9 +120,40 @@ fn non_absorbing_lens_conserves_light_power() {
     let first = profile[0].1;
     for (depth, total, _) in &profile {
         let change = (total - first) / first;
-        assert!(change.abs() < 0.02, "light power changed by {:.2}% at depth {depth}", 100.0 * change);
+        assert!(
+            change.abs() < 0.02,
+            "light power changed by {:.2}% at depth {depth}",
+            100.0 * change
+        );
     }
     // The lens does concentrate light on the axis, so the conservation is not trivial.
     let centre_max = profile.iter().map(|r| r.2).fold(0.0f32, f32::max);
     assert!(centre_max > 1.5, "the weak lens did not focus at all: {centre_max}");
+}
+
+#[test]
+fn a_separate_volume_can_be_the_source_of_eta() {
+    // Fig. 12e: refraction from a second volume. The main volume is empty; the η volume holds
+    // the ball. A caustic must still form.
+    let mut gpu = Gpu::new();
+    let mut tf: TransferFunctions = plain_tf(vec![[0.0, 0.0]], vec![[0.0, 1.0, 1.0, 1.0]]);
+    tf.eta = Curve {
+        points: vec![[0.0, 1.0], [0.5, ETA]],
+    };
+    let mut scene = head_on_scene(&tf);
+    scene.eta_volume = Some(caustica::scene::VolumeSource::Builtin {
+        name: "test".into(),
+        resolution: 0,
+    });
+    // Window [0, 1] for the main volume; the η volume is mapped through its own value range,
+    // so give it values spanning [0, 1] with the ball at 0.5 and one voxel at 1.
+    let mut eta_volume = sphere(N, RADIUS, 0.5);
+    eta_volume.data[0] = 1.0;
+    eta_volume.value_range = [0.0, 1.0];
+    let mut p = prepared(scene, volume_from(N, |_, _, _| 0.0), tf);
+    p.eta_volume = Some(std::sync::Arc::new(eta_volume));
+    assert!(p.features().eta_volume);
+    let profile = profile(&mut gpu, &p, 16);
+    let peak = profile.iter().map(|r| r.2).fold(0.0f32, f32::max);
+    assert!(peak > 4.0, "no caustic from the η volume: peak {peak}");
 }

@@ -42,7 +42,10 @@ fn matches_cpu_emission_absorption() {
     let tf = tf();
     let scene = head_on_scene(&tf);
     let volume = blobs();
-    let gpu_img = gpu.render(&prepared(scene.clone(), volume.clone(), tf.clone()), &RenderRequest::new(SIZE, SIZE));
+    let gpu_img = gpu.render(
+        &prepared(scene.clone(), volume.clone(), tf.clone()),
+        &RenderRequest::new(SIZE, SIZE),
+    );
     let cpu_img = straight::render(&scene, &volume, &tf, SIZE, SIZE, [0.0; 3]).unwrap();
     let (mean, max) = diff(&gpu_img.image.pixels, &cpu_img);
     let peak = cpu_img.iter().flatten().fold(0.0f32, |m, v| m.max(*v));
@@ -59,7 +62,10 @@ fn the_comparison_detects_a_wrong_image() {
     let mut gpu = Gpu::new();
     let tf = tf();
     let scene = head_on_scene(&tf);
-    let gpu_img = gpu.render(&prepared(scene.clone(), blobs(), tf.clone()), &RenderRequest::new(SIZE, SIZE));
+    let gpu_img = gpu.render(
+        &prepared(scene.clone(), blobs(), tf.clone()),
+        &RenderRequest::new(SIZE, SIZE),
+    );
     let shifted = volume_from(N, |x, y, z| {
         let x = x - 3.0 / N as f32;
         let a = (-((x - 0.4).powi(2) + (y - 0.45).powi(2) + (z - 0.45).powi(2)) / 0.02).exp();
@@ -68,7 +74,10 @@ fn the_comparison_detects_a_wrong_image() {
     });
     let wrong = straight::render(&scene, &shifted, &tf, SIZE, SIZE, [0.0; 3]).unwrap();
     let (mean, max) = diff(&gpu_img.image.pixels, &wrong);
-    assert!(mean > MEAN_TOL && max > MAX_TOL, "a shifted image passed: mean {mean}, max {max}");
+    assert!(
+        mean > MEAN_TOL && max > MAX_TOL,
+        "a shifted image passed: mean {mean}, max {max}"
+    );
 }
 
 #[test]
@@ -99,4 +108,40 @@ fn constant_eta_does_not_bend_rays() {
     // near 1.0 (2^-10 ≈ 9.8e-4), which reaches the image scaled by a colour ≤ 1: bound 2e-3,
     // half of one 8-bit output step (1/255).
     assert!(max < 2e-3, "constant η changed the image: max {max}");
+}
+
+#[test]
+fn clip_plane_zeroes_opacity_on_one_side_only() {
+    // Fig. 9: the clip plane removes opacity where n·x > offset and leaves the rest alone.
+    // Orthographic head-on view: world +x is image right, so the right half must show the
+    // (black) background and the left half the unclipped image.
+    let mut gpu = Gpu::new();
+    let tf = tf();
+    let mut scene = head_on_scene(&tf);
+    let full = gpu.render(
+        &prepared(scene.clone(), blobs(), tf.clone()),
+        &RenderRequest::new(SIZE, SIZE),
+    );
+    scene.clip = Some(caustica::scene::ClipPlane {
+        normal: [1.0, 0.0, 0.0],
+        offset: 0.0,
+    });
+    let clipped = gpu.render(&prepared(scene, blobs(), tf), &RenderRequest::new(SIZE, SIZE));
+    let s = SIZE as usize;
+    let (mut right_max, mut left_diff, mut full_right) = (0.0f32, 0.0f32, 0.0f32);
+    for y in 0..s {
+        for x in 0..s {
+            let (c, f) = (clipped.image.pixels[y * s + x], full.image.pixels[y * s + x]);
+            if x >= s / 2 + 1 {
+                right_max = right_max.max(luminance(&c));
+                full_right = full_right.max(luminance(&f));
+            } else if x < s / 2 - 1 {
+                left_diff = left_diff.max((luminance(&c) - luminance(&f)).abs());
+            }
+        }
+    }
+    assert!(full_right > 0.1, "the test volume must reach into the clipped half");
+    assert!(right_max < 1e-3, "clipped half not empty: {right_max}");
+    // Left of the plane nothing changes (one texel of margin for the plane's sub-texel position).
+    assert!(left_diff < 1e-3, "unclipped half changed by {left_diff}");
 }
