@@ -56,5 +56,8 @@ fn features_follow_the_scene() {
 fn validation_canary_counts_errors() {
     // The canary must see a deliberately invalid call, or a clean run would prove nothing.
     let gpu = Gpu::new();
-    assert!(gpu.ctx.provoke_validation_error() > 0, "the validation layer did not report");
+    assert!(
+        gpu.ctx.provoke_validation_error() > 0,
+        "the validation layer did not report"
+    );
 }
