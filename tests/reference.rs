@@ -132,7 +132,7 @@ fn clip_plane_zeroes_opacity_on_one_side_only() {
     for y in 0..s {
         for x in 0..s {
             let (c, f) = (clipped.image.pixels[y * s + x], full.image.pixels[y * s + x]);
-            if x >= s / 2 + 1 {
+            if x > s / 2 {
                 right_max = right_max.max(luminance(&c));
                 full_right = full_right.max(luminance(&f));
             } else if x < s / 2 - 1 {
