@@ -82,7 +82,7 @@ struct RenderArgs {
     /// Override the resolution of a built-in scene's volume.
     #[arg(long)]
     resolution: Option<usize>,
-    /// Transfer functions (JSON) for a volume file.
+    /// Transfer functions (JSON), replacing those of the scene.
     #[arg(long)]
     transfer: Option<PathBuf>,
     /// Raw volume: dims as XxYxZ.
@@ -176,6 +176,13 @@ fn load_scene(args: &RenderArgs) -> Result<Scene> {
         (None, Some(path)) => scene_for_volume(args, path)?,
         (None, None) => bail!("give a scene file, a volume file or --scene NAME (see `caustica scenes`)"),
     };
+    if let (Some(path), Some(_)) = (&args.transfer, &args.scene) {
+        scene.transfer = TransferSource::Inline(TransferFunctions::load(path)?);
+    } else if let (Some(path), Some(input)) = (&args.transfer, &args.input) {
+        if input.extension().is_some_and(|e| e == "toml") {
+            scene.transfer = TransferSource::Inline(TransferFunctions::load(path)?);
+        }
+    }
     if let Some(d) = args.sample_distance {
         scene.quality.sample_distance = d;
     }
@@ -291,7 +298,27 @@ fn exit_code(err: &anyhow::Error) -> u8 {
     }
 }
 
+/// Prints library warnings (`log::warn!`) to stderr; quiet otherwise.
+struct StderrLogger;
+
+impl log::Log for StderrLogger {
+    fn enabled(&self, metadata: &log::Metadata) -> bool {
+        metadata.level() <= log::Level::Warn
+    }
+
+    fn log(&self, record: &log::Record) {
+        if self.enabled(record.metadata()) {
+            eprintln!("{}: {}", record.level().as_str().to_lowercase(), record.args());
+        }
+    }
+
+    fn flush(&self) {}
+}
+
+static LOGGER: StderrLogger = StderrLogger;
+
 fn main() -> ExitCode {
+    let _ = log::set_logger(&LOGGER).map(|()| log::set_max_level(log::LevelFilter::Warn));
     let cli = Cli::parse();
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,

@@ -18,7 +18,7 @@ pub const MAX_LIGHT_POLAR_DEG: f32 = 89.0;
 
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
-    #[error("cannot read scene file {path}: {source}")]
+    #[error("cannot read scene file {path}")]
     Io { path: PathBuf, source: std::io::Error },
     #[error("scene file {path} is invalid: {message}")]
     Parse { path: PathBuf, message: String },

@@ -30,7 +30,7 @@ pub const ETA_RANGE: [f32; 2] = [1.0, 4.0];
 
 #[derive(Debug, thiserror::Error)]
 pub enum TransferError {
-    #[error("cannot read transfer function file {path}: {source}")]
+    #[error("cannot read transfer function file {path}")]
     Io { path: PathBuf, source: std::io::Error },
     #[error("transfer function file {path} is not valid JSON for a transfer function: {message}")]
     Parse { path: PathBuf, message: String },

@@ -169,7 +169,7 @@ fn line_text(line: &Option<usize>) -> String {
 
 #[derive(Debug, thiserror::Error)]
 pub enum VolumeError {
-    #[error("I/O error on {}: {source}", path.display())]
+    #[error("cannot read {}", path.display())]
     Io { path: PathBuf, source: std::io::Error },
     #[error("volume data has {actual} samples but its dims need {expected}")]
     SizeMismatch { expected: usize, actual: usize },
@@ -232,8 +232,8 @@ pub enum VolumeError {
     )]
     UnknownScene(String),
     #[error(
-        "unknown volume format for {} (supported: .nrrd, .nhdr; raw files need dims and type, \
-         see RawDesc)",
+        "unknown volume format for {} (supported: .nrrd, .nhdr; for raw files give \
+         --raw-dims and --raw-type, or kind = \"raw\" in a scene file)",
         path.display()
     )]
     UnknownFormat { path: PathBuf },
