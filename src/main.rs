@@ -132,7 +132,7 @@ fn parse_debug_view(s: &str) -> Result<DebugView, String> {
     DebugView::parse(s).ok_or_else(|| format!("'{s}': expected light, light-direction, intensity or medium"))
 }
 
-/// A scene for a bare volume file: default camera and light, default or given transfer functions.
+/// A scene for a bare volume file: default camera, light and transfer functions.
 fn scene_for_volume(args: &RenderArgs, path: &Path) -> Result<Scene> {
     let volume = match args.raw_dims {
         Some(dims) => VolumeSource::Raw(RawDesc {
@@ -151,15 +151,11 @@ fn scene_for_volume(args: &RenderArgs, path: &Path) -> Result<Scene> {
             path: path.to_path_buf(),
         },
     };
-    let tf = match &args.transfer {
-        Some(p) => TransferFunctions::load(p)?,
-        None => TransferFunctions::default(),
-    };
     Ok(Scene {
         volume,
         eta_volume: None,
         window: None,
-        transfer: TransferSource::Inline(tf),
+        transfer: TransferSource::Inline(TransferFunctions::default()),
         camera: Default::default(),
         light: Default::default(),
         shading: Default::default(),
@@ -176,12 +172,8 @@ fn load_scene(args: &RenderArgs) -> Result<Scene> {
         (None, Some(path)) => scene_for_volume(args, path)?,
         (None, None) => bail!("give a scene file, a volume file or --scene NAME (see `caustica scenes`)"),
     };
-    if let (Some(path), Some(_)) = (&args.transfer, &args.scene) {
+    if let Some(path) = &args.transfer {
         scene.transfer = TransferSource::Inline(TransferFunctions::load(path)?);
-    } else if let (Some(path), Some(input)) = (&args.transfer, &args.input) {
-        if input.extension().is_some_and(|e| e == "toml") {
-            scene.transfer = TransferSource::Inline(TransferFunctions::load(path)?);
-        }
     }
     if let Some(d) = args.sample_distance {
         scene.quality.sample_distance = d;

@@ -16,9 +16,9 @@ fn caustica(args: &[&str], env: &[(&str, &str)]) -> (i32, String) {
     (out.status.code().unwrap_or(-1), stderr)
 }
 
-#[test]
-fn no_driver_is_a_clear_error() {
-    let args = [
+/// A tiny render of a built-in scene, with `extra` arguments.
+fn render_args<'a>(extra: &[&'a str]) -> Vec<&'a str> {
+    let mut args = vec![
         "render",
         "--scene",
         "ball-lens",
@@ -29,6 +29,13 @@ fn no_driver_is_a_clear_error() {
         "-o",
         "x.png",
     ];
+    args.extend_from_slice(extra);
+    args
+}
+
+#[test]
+fn no_driver_is_a_clear_error() {
+    let args = render_args(&[]);
     // Point the loader at a driver list with nothing in it.
     let env = [
         ("VK_ICD_FILENAMES", "/nonexistent/icd.json"),
@@ -44,19 +51,7 @@ fn no_driver_is_a_clear_error() {
 
 #[test]
 fn unknown_device_lists_the_available_ones() {
-    let args = [
-        "render",
-        "--scene",
-        "ball-lens",
-        "--resolution",
-        "16",
-        "--size",
-        "8x8",
-        "--device",
-        "no-such-gpu",
-        "-o",
-        "x.png",
-    ];
+    let args = render_args(&["--device", "no-such-gpu"]);
     let (code, stderr) = caustica(&args, &[]);
     assert_eq!(code, 3, "{stderr}");
     assert!(
