@@ -188,6 +188,20 @@ fn transfer_function_file_with_decreasing_points() {
 }
 
 #[test]
+fn transfer_option_replaces_the_transfer_functions_of_a_builtin_scene() {
+    // An invalid file given with --transfer must be read (and rejected) even when the
+    // built-in scene has transfer functions of its own.
+    let s = Scratch::new("tf-override");
+    s.write("tf.json", r#"{ "opacity": [[0.0, 2.0]] }"#);
+    render_fails(
+        &s,
+        &["--scene", "ball-lens", "--transfer", "tf.json"],
+        EXIT_INPUT,
+        &["invalid transfer function", "opacity point 0"],
+    );
+}
+
+#[test]
 fn transfer_function_for_a_volume_file_that_is_not_json() {
     let s = Scratch::new("tf-json");
     s.write("v.raw", vec![0u8; 8]);
