@@ -8,7 +8,7 @@ use clap::{Parser, Subcommand};
 
 use caustica::gpu::{list_devices, Context, ContextDesc, DeviceSelector, GpuError};
 use caustica::render::{DebugView, PreparedScene, RenderError, RenderRequest, Renderer};
-use caustica::scene::{builtin, Scene, TransferSource, VolumeSource, BUILTIN_SCENES};
+use caustica::scene::{builtin, Precision, Scene, TransferSource, VolumeSource, BUILTIN_SCENES};
 use caustica::transfer::TransferFunctions;
 use caustica::volume::{self, Endian, RawDesc, ScalarType};
 
@@ -79,6 +79,9 @@ struct RenderArgs {
     /// Override the scene's sample distance (multiple of the smallest voxel size).
     #[arg(long)]
     sample_distance: Option<f32>,
+    /// Override the storage precision of the light, colour and medium buffers: f16 or f32.
+    #[arg(long, value_parser = parse_precision)]
+    precision: Option<Precision>,
     /// Override the resolution of a built-in scene's volume.
     #[arg(long)]
     resolution: Option<usize>,
@@ -126,6 +129,10 @@ fn parse_spacing(s: &str) -> Result<[f32; 3], String> {
         .map(|p| p.trim().parse::<f32>().map_err(|e| format!("'{p}': {e}")))
         .collect::<Result<_, _>>()?;
     v.try_into().map_err(|_| "expected X,Y,Z, e.g. 0.5,0.5,2".to_string())
+}
+
+fn parse_precision(s: &str) -> Result<Precision, String> {
+    Precision::parse(s).ok_or_else(|| format!("'{s}': expected f16 or f32"))
 }
 
 fn parse_debug_view(s: &str) -> Result<DebugView, String> {
@@ -178,6 +185,9 @@ fn load_scene(args: &RenderArgs) -> Result<Scene> {
     if let Some(d) = args.sample_distance {
         scene.quality.sample_distance = d;
     }
+    if let Some(p) = args.precision {
+        scene.quality.precision = p;
+    }
     if let (Some(r), VolumeSource::Builtin { resolution, .. }) = (args.resolution, &mut scene.volume) {
         *resolution = r;
     }
@@ -208,9 +218,10 @@ fn render(args: &RenderArgs) -> Result<()> {
     let s = &out.stats;
     if args.timings {
         println!(
-            "device: {}\nfeatures: {}\nplanes: {} (integrated {})\nms per plane: {:.3}\ntotal GPU ms: {:.1}\nstate buffers: {:.1} MiB",
+            "device: {}\nfeatures: {}\nprecision: {}\nplanes: {} (integrated {})\nms per plane: {:.3}\ntotal GPU ms: {:.1}\nstate buffers: {:.1} MiB",
             ctx.info.name,
             s.features.describe(),
+            scene.quality.precision.name(),
             s.planes,
             s.planes_run,
             s.ms_per_plane,

@@ -208,6 +208,35 @@ pub enum Toggle {
     Off,
 }
 
+/// Storage precision of the light, colour and medium state buffers (positions and
+/// directions are always 32-bit float).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum Precision {
+    /// 16-bit float: half the memory and bandwidth; about 3 decimal digits.
+    #[default]
+    F16,
+    /// 32-bit float everywhere.
+    F32,
+}
+
+impl Precision {
+    pub fn parse(s: &str) -> Option<Precision> {
+        match s {
+            "f16" => Some(Precision::F16),
+            "f32" => Some(Precision::F32),
+            _ => None,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Precision::F16 => "f16",
+            Precision::F32 => "f32",
+        }
+    }
+}
+
 /// The speed/accuracy knobs.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -223,6 +252,8 @@ pub struct Quality {
     /// Per-plane clamp of the intensity-law ratio S_{i-1}/S_i and of its inverse; bounds the
     /// brightening at focal points, where the back-projected area goes to zero.
     pub max_intensity_ratio: f32,
+    /// Storage precision of the light, colour and medium state buffers.
+    pub precision: Precision,
 }
 
 impl Default for Quality {
@@ -235,6 +266,7 @@ impl Default for Quality {
             specular: true,
             termination_opacity: 0.995,
             max_intensity_ratio: 4.0,
+            precision: Precision::F16,
         }
     }
 }

@@ -5,7 +5,7 @@ mod common;
 
 use caustica::reference::straight;
 use caustica::render::RenderRequest;
-use caustica::scene::Toggle;
+use caustica::scene::{Precision, Toggle};
 use caustica::transfer::Curve;
 use common::*;
 
@@ -53,6 +53,36 @@ fn matches_cpu_emission_absorption() {
     assert!(peak > 0.2, "the test scene must not be blank");
     assert!(mean < MEAN_TOL, "mean difference {mean}");
     assert!(max < MAX_TOL, "max difference {max}");
+}
+
+#[test]
+fn full_precision_buffers_match_cpu_at_least_as_well() {
+    let mut gpu = Gpu::new();
+    let tf = tf();
+    let volume = blobs();
+    let mut scene = head_on_scene(&tf);
+    let cpu_img = straight::render(&scene, &volume, &tf, SIZE, SIZE, [0.0; 3]).unwrap();
+    let half = gpu.render(
+        &prepared(scene.clone(), volume.clone(), tf.clone()),
+        &RenderRequest::new(SIZE, SIZE),
+    );
+    scene.quality.precision = Precision::F32;
+    let full = gpu.render(&prepared(scene, volume, tf), &RenderRequest::new(SIZE, SIZE));
+    let (mean_half, _) = diff(&half.image.pixels, &cpu_img);
+    let (mean_full, max_full) = diff(&full.image.pixels, &cpu_img);
+    let full_rgb: Vec<[f32; 3]> = full.image.pixels.iter().map(|p| [p[0], p[1], p[2]]).collect();
+    let (_, max_between) = diff(&half.image.pixels, &full_rgb);
+    eprintln!(
+        "mean |Δ| to CPU: f16 {mean_half:.2e}, f32 {mean_full:.2e}; f16 vs f32 max {max_between:.2e}; state {} vs {} bytes",
+        half.stats.state_bytes, full.stats.state_bytes
+    );
+    assert!(max_between > 0.0, "the precision setting changed nothing");
+    assert!(full.stats.state_bytes > half.stats.state_bytes);
+    assert!(
+        mean_full <= mean_half,
+        "f32 buffers are further from the CPU image than f16 ones"
+    );
+    assert!(mean_full < MEAN_TOL && max_full < MAX_TOL);
 }
 
 #[test]

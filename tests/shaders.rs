@@ -6,12 +6,13 @@ mod common;
 use caustica::gpu::ComputePipeline;
 use caustica::render::shaders::{bindings, Pass};
 use caustica::render::{DebugView, Features, Immediates};
+use caustica::scene::Precision;
 
 #[test]
 fn every_variant_compiles_and_validates() {
     let mut count = 0;
     for pass in Pass::ALL {
-        let source = pass.parse().unwrap_or_else(|e| panic!("{e}"));
+        let source = pass.parse(Precision::F16).unwrap_or_else(|e| panic!("{e}"));
         let debug_views: &[DebugView] = if pass == Pass::Finish {
             &[
                 DebugView::Image,
@@ -37,6 +38,23 @@ fn every_variant_compiles_and_validates() {
 }
 
 #[test]
+fn full_precision_variants_compile_with_32_bit_storage() {
+    for pass in Pass::ALL {
+        let source = pass.source(Precision::F32);
+        assert!(
+            !source.contains("rgba16float"),
+            "{pass:?} still declares 16-bit storage"
+        );
+        let parsed = pass.parse(Precision::F32).unwrap_or_else(|e| panic!("{e}"));
+        for features in Features::all_combinations().into_iter().step_by(17) {
+            parsed
+                .specialise("main", &features.constants(DebugView::Image))
+                .unwrap_or_else(|e| panic!("{pass:?} {features:?}: {e}"));
+        }
+    }
+}
+
+#[test]
 fn every_override_is_set_by_features() {
     // A new `override` in the WGSL that `Features::constants` does not set would silently keep
     // its default in every variant.
@@ -46,7 +64,7 @@ fn every_override_is_set_by_features() {
         .map(|(n, _)| *n)
         .collect();
     for pass in Pass::ALL {
-        for o in pass.parse().unwrap().override_names() {
+        for o in pass.parse(Precision::F16).unwrap().override_names() {
             assert!(names.contains(&o.as_str()), "override {o} of {:?} is not set", pass);
         }
     }
@@ -80,9 +98,17 @@ fn representative_variants_build_on_the_device() {
         }
         variants.push(f);
     }
-    for pass in Pass::ALL {
-        let source = pass.parse().unwrap();
-        for f in &variants {
+    for (pass, precision) in Pass::ALL
+        .into_iter()
+        .flat_map(|p| [(p, Precision::F16), (p, Precision::F32)])
+    {
+        let source = pass.parse(precision).unwrap();
+        let variants = if precision == Precision::F16 {
+            &variants[..]
+        } else {
+            &variants[..2]
+        };
+        for f in variants {
             let spirv = source.specialise("main", &f.constants(DebugView::Image)).unwrap();
             ComputePipeline::new(
                 &gpu.ctx,
@@ -92,7 +118,7 @@ fn representative_variants_build_on_the_device() {
                 &bindings(),
                 std::mem::size_of::<Immediates>() as u32,
             )
-            .unwrap_or_else(|e| panic!("{pass:?} {f:?}: {e}"));
+            .unwrap_or_else(|e| panic!("{pass:?} {precision:?} {f:?}: {e}"));
         }
     }
     gpu.assert_clean();

@@ -116,6 +116,7 @@ impl Features {
             (self.specular, "specular"),
             (self.clip, "clip"),
             (self.eta_volume, "eta-volume"),
+            (self.orthographic, "orthographic"),
         ] {
             if on {
                 v.push(name);

@@ -23,7 +23,7 @@ use std::sync::Arc;
 
 use crate::gpu::shader::ShaderSource;
 use crate::gpu::{ComputePipeline, Context, GpuError};
-use crate::scene::{Environment, Scene, SceneError};
+use crate::scene::{Environment, Precision, Scene, SceneError};
 use crate::transfer::TransferFunctions;
 use crate::volume::{Volume, VolumeError};
 
@@ -145,19 +145,15 @@ pub struct RenderOutput {
 /// Renders prepared scenes; keeps parsed shaders and pipelines between renders.
 pub struct Renderer {
     ctx: Arc<Context>,
-    sources: HashMap<Pass, ShaderSource>,
-    pipelines: HashMap<(Pass, Features, DebugView), Arc<ComputePipeline>>,
+    sources: HashMap<(Pass, Precision), ShaderSource>,
+    pipelines: HashMap<(Pass, Precision, Features, DebugView), Arc<ComputePipeline>>,
 }
 
 impl Renderer {
     pub fn new(ctx: Arc<Context>) -> Result<Self, RenderError> {
-        let mut sources = HashMap::new();
-        for pass in Pass::ALL {
-            sources.insert(pass, pass.parse()?);
-        }
         Ok(Renderer {
             ctx,
-            sources,
+            sources: HashMap::new(),
             pipelines: HashMap::new(),
         })
     }
@@ -169,19 +165,21 @@ impl Renderer {
     fn pipeline(
         &mut self,
         pass: Pass,
+        precision: Precision,
         features: Features,
         debug: DebugView,
     ) -> Result<Arc<ComputePipeline>, RenderError> {
         let debug = if pass == Pass::Finish { debug } else { DebugView::Image };
-        if let Some(p) = self.pipelines.get(&(pass, features, debug)) {
+        let key = (pass, precision, features, debug);
+        if let Some(p) = self.pipelines.get(&key) {
             return Ok(p.clone());
         }
-        let source = self
-            .sources
-            .get(&pass)
-            .ok_or_else(|| RenderError::Setup("missing shader".into()))?;
+        let source = match self.sources.entry((pass, precision)) {
+            std::collections::hash_map::Entry::Occupied(e) => e.into_mut(),
+            std::collections::hash_map::Entry::Vacant(e) => e.insert(pass.parse(precision)?),
+        };
         let spirv = source.specialise("main", &features.constants(debug))?;
-        let label = format!("{} [{}]", pass.file(), features.describe());
+        let label = format!("{} [{} {}]", pass.file(), features.describe(), precision.name());
         let p = Arc::new(ComputePipeline::new(
             &self.ctx,
             &label,
@@ -190,17 +188,18 @@ impl Renderer {
             &shaders::bindings(),
             std::mem::size_of::<Immediates>() as u32,
         )?);
-        self.pipelines.insert((pass, features, debug), p.clone());
+        self.pipelines.insert(key, p.clone());
         Ok(p)
     }
 
     /// Renders one image (or a debug buffer) of `prepared`.
     pub fn render(&mut self, prepared: &PreparedScene, req: &RenderRequest) -> Result<RenderOutput, RenderError> {
         let features = prepared.features();
+        let precision = prepared.scene.quality.precision;
         let pipelines = [
-            self.pipeline(Pass::Init, features, req.debug_view)?,
-            self.pipeline(Pass::Propagate, features, req.debug_view)?,
-            self.pipeline(Pass::Finish, features, req.debug_view)?,
+            self.pipeline(Pass::Init, precision, features, req.debug_view)?,
+            self.pipeline(Pass::Propagate, precision, features, req.debug_view)?,
+            self.pipeline(Pass::Finish, precision, features, req.debug_view)?,
         ];
         state::run(&self.ctx, prepared, req, features, &pipelines)
     }

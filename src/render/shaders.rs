@@ -2,6 +2,7 @@
 
 use crate::gpu::shader::ShaderSource;
 use crate::gpu::{Binding, BindingKind, GpuError};
+use crate::scene::Precision;
 
 pub const COMMON: &str = include_str!("../../shaders/common.wgsl");
 pub const OPTICS: &str = include_str!("../../shaders/optics.wgsl");
@@ -33,13 +34,19 @@ impl Pass {
         }
     }
 
-    /// The full source: shared declarations, optics helpers, then the pass.
-    pub fn source(self) -> String {
-        format!("{COMMON}\n{OPTICS}\n{}", self.body())
+    /// The full source: shared declarations, optics helpers, then the pass. The storage
+    /// format of the write side of the state buffers follows `precision` (the read side is
+    /// format-agnostic).
+    pub fn source(self, precision: Precision) -> String {
+        let common = match precision {
+            Precision::F16 => COMMON.to_string(),
+            Precision::F32 => COMMON.replace("rgba16float", "rgba32float"),
+        };
+        format!("{common}\n{OPTICS}\n{}", self.body())
     }
 
-    pub fn parse(self) -> Result<ShaderSource, GpuError> {
-        ShaderSource::parse(self.file(), &self.source())
+    pub fn parse(self, precision: Precision) -> Result<ShaderSource, GpuError> {
+        ShaderSource::parse(self.file(), &self.source(precision))
     }
 }
 

@@ -18,22 +18,30 @@ use super::{
     background, DebugView, Features, Immediates, Params, PreparedScene, RenderError, RenderOutput, RenderRequest,
     RenderStats, RenderedImage,
 };
+use crate::scene::Precision;
 
 /// Planes recorded per submission: keeps each submission short (progress, responsiveness,
 /// watchdogs) while the per-submission overhead stays negligible.
 const PLANES_PER_SUBMIT: u32 = 128;
 const WORKGROUP: u32 = 8;
 
-/// The six state buffers of Algorithm 1, in binding order; `None` where the scene does not
-/// need it (a 1×1 placeholder is bound instead).
-const STATE: [(&str, Format); 6] = [
-    ("light", Format::R16G16B16A16_SFLOAT),
-    ("light direction", Format::R32G32B32A32_SFLOAT),
-    ("view position", Format::R32G32B32A32_SFLOAT),
-    ("view direction", Format::R32G32B32A32_SFLOAT),
-    ("colour+opacity", Format::R16G16B16A16_SFLOAT),
-    ("medium", Format::R16G16B16A16_SFLOAT),
-];
+/// The six state buffers of Algorithm 1, in binding order, with their storage formats at
+/// `precision` (must match the storage formats of `shaders/common.wgsl` after
+/// [`super::shaders::Pass::source`]). Buffers the scene does not need get a 1×1 placeholder.
+fn state_formats(precision: Precision) -> [(&'static str, Format); 6] {
+    let colour = match precision {
+        Precision::F16 => Format::R16G16B16A16_SFLOAT,
+        Precision::F32 => Format::R32G32B32A32_SFLOAT,
+    };
+    [
+        ("light", colour),
+        ("light direction", Format::R32G32B32A32_SFLOAT),
+        ("view position", Format::R32G32B32A32_SFLOAT),
+        ("view direction", Format::R32G32B32A32_SFLOAT),
+        ("colour+opacity", colour),
+        ("medium", colour),
+    ]
+}
 
 fn needed(features: &Features, index: usize) -> bool {
     match index {
@@ -173,7 +181,7 @@ pub(super) fn run(
     let mut state_bytes = 0u64;
     let mut state: [Vec<Image>; 2] = [Vec::new(), Vec::new()];
     for (side, images) in state.iter_mut().enumerate() {
-        for (k, (name, format)) in STATE.iter().enumerate() {
+        for (k, (name, format)) in state_formats(prepared.scene.quality.precision).iter().enumerate() {
             let (iw, ih) = if needed(&features, k) { (w, h) } else { (1, 1) };
             let label = format!("{name} {}", ["A", "B"][side]);
             let img = Image::new(ctx, ImageDesc::storage_2d(&label, *format, iw, ih))?;
