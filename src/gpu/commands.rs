@@ -65,6 +65,9 @@ impl Timestamps {
 
 impl Drop for Timestamps {
     fn drop(&mut self) {
+        if self.ctx.is_hung() {
+            return;
+        }
         // SAFETY: no pending submission uses the pool.
         unsafe { self.ctx.device.destroy_query_pool(self.pool, None) };
     }
@@ -293,34 +296,65 @@ impl Recorder {
         };
     }
 
-    /// Ends recording, submits, and blocks until the GPU is done.
+    /// Ends recording, submits, and blocks until the GPU is done or the context's fence
+    /// timeout has passed ([`GpuError::Timeout`]; the device then counts as lost).
     pub fn submit_and_wait(mut self) -> Result<(), GpuError> {
-        let d = &self.ctx.device;
+        let ctx = self.ctx.clone();
+        let d = &ctx.device;
+        if ctx.is_lost() {
+            return Err(GpuError::DeviceLost { call: "vkQueueSubmit" });
+        }
         // SAFETY: the buffer is in the recording state; the fence is waited for and destroyed
         // before returning, so everything referenced by the commands outlives their execution.
+        // On a timeout the fence and command buffer are leaked with the rest (see `Context`).
         unsafe {
             d.end_command_buffer(self.cmd).map_err(vk_err("vkEndCommandBuffer"))?;
+            if ctx.injector.submission_lost() {
+                ctx.mark_lost(false);
+                return Err(GpuError::DeviceLost { call: "vkQueueSubmit" });
+            }
             let fence = d
                 .create_fence(&vk::FenceCreateInfo::default(), None)
                 .map_err(vk_err("vkCreateFence"))?;
             let cmds = [self.cmd];
             let submit = [vk::SubmitInfo::default().command_buffers(&cmds)];
-            let result = d
-                .queue_submit(self.ctx.queue, &submit, fence)
-                .map_err(vk_err("vkQueueSubmit"))
-                .and_then(|_| {
-                    d.wait_for_fences(&[fence], true, u64::MAX)
-                        .map_err(vk_err("vkWaitForFences"))
-                });
+            if let Err(e) = d.queue_submit(ctx.queue, &submit, fence) {
+                d.destroy_fence(fence, None);
+                if e == vk::Result::ERROR_DEVICE_LOST {
+                    ctx.mark_lost(false);
+                }
+                return Err(GpuError::vk("vkQueueSubmit", e));
+            }
             self.submitted = true;
-            d.destroy_fence(fence, None);
-            result
+            let timeout_ns = ctx.fence_timeout.as_nanos().min(u64::MAX as u128) as u64;
+            match d.wait_for_fences(&[fence], true, timeout_ns) {
+                Ok(()) => {
+                    d.destroy_fence(fence, None);
+                    Ok(())
+                }
+                Err(vk::Result::TIMEOUT) => {
+                    ctx.mark_lost(true);
+                    Err(GpuError::Timeout {
+                        seconds: ctx.fence_timeout.as_secs(),
+                    })
+                }
+                Err(e) => {
+                    // Device lost: waiting is over (the spec makes fences signal), so the
+                    // fence can go.
+                    ctx.mark_lost(false);
+                    d.destroy_fence(fence, None);
+                    Err(GpuError::vk("vkWaitForFences", e))
+                }
+            }
         }
     }
 }
 
 impl Drop for Recorder {
     fn drop(&mut self) {
+        if self.ctx.is_hung() {
+            return; // possibly still executing: leak
+        }
         if let Ok(pool) = self.ctx.command_pool.lock() {
             // SAFETY: the buffer is not pending: submit_and_wait waited, or it was never submitted.
             unsafe { self.ctx.device.free_command_buffers(*pool, &[self.cmd]) };

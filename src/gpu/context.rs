@@ -1,13 +1,19 @@
 //! Instance creation, device selection and the shared device context (queue, allocator, canary).
 
 use std::ffi::{c_void, CStr, CString};
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
+use std::time::Duration;
 
 use ash::vk;
 use gpu_allocator::vulkan::{Allocator, AllocatorCreateDesc};
 
 use super::error::{vk_err, GpuError};
+use super::fault::{Faults, Injector};
+
+/// How long one submission may run before the device counts as hung. The renderer keeps each
+/// submission to a bounded amount of work (see `render::state`), seconds on a CPU driver.
+pub const FENCE_TIMEOUT: Duration = Duration::from_secs(120);
 
 const VALIDATION_LAYER: &CStr = c"VK_LAYER_KHRONOS_validation";
 
@@ -41,17 +47,32 @@ pub struct ContextDesc {
     /// the context is created without it unless `require_validation` is set.
     pub validation: bool,
     pub require_validation: bool,
+    /// Faults to inject (tests); empty in normal use.
+    pub faults: Faults,
+    /// Longest wait for one submission; [`FENCE_TIMEOUT`] unless set.
+    pub fence_timeout: Option<Duration>,
 }
 
 impl ContextDesc {
     /// Validation from the environment: `CAUSTICA_VALIDATION=1` enables it,
     /// `CAUSTICA_VALIDATION=require` also fails when the layer is not installed.
+    /// `CAUSTICA_FAULT` injects faults (see [`Faults`]); a malformed value is ignored with a
+    /// warning.
     pub fn from_env(device: DeviceSelector) -> Self {
         let v = std::env::var("CAUSTICA_VALIDATION").unwrap_or_default();
+        let faults = match std::env::var("CAUSTICA_FAULT") {
+            Ok(spec) => Faults::parse(&spec).unwrap_or_else(|e| {
+                log::warn!("CAUSTICA_FAULT ignored: {e}");
+                Faults::default()
+            }),
+            Err(_) => Faults::default(),
+        };
         ContextDesc {
             device,
             validation: matches!(v.as_str(), "1" | "require" | "true"),
             require_validation: v == "require",
+            faults,
+            fence_timeout: None,
         }
     }
 }
@@ -118,6 +139,14 @@ pub struct Context {
     pub(crate) properties: vk::PhysicalDeviceProperties,
     pub info: DeviceInfo,
     pub validation_enabled: bool,
+    pub(crate) injector: Injector,
+    pub(crate) fence_timeout: Duration,
+    /// Set once the device reported loss or a submission timed out: later submissions fail
+    /// at once instead of waiting on a device that will not answer.
+    lost: AtomicBool,
+    /// Set when a submission timed out: its work may still be running, so objects it uses are
+    /// leaked rather than destroyed under it.
+    hung: AtomicBool,
 }
 
 fn load_entry() -> Result<ash::Entry, GpuError> {
@@ -405,10 +434,31 @@ impl Context {
             properties,
             info,
             validation_enabled: validation,
+            injector: Injector::new(desc.faults.clone()),
+            fence_timeout: desc.fence_timeout.unwrap_or(FENCE_TIMEOUT),
+            lost: AtomicBool::new(false),
+            hung: AtomicBool::new(false),
         };
         ctx.set_name(command_pool, "caustica command pool");
         ctx.set_name(queue, "caustica compute queue");
         Ok(Arc::new(ctx))
+    }
+
+    /// True once the device was lost (or hung): nothing more can run on it.
+    pub fn is_lost(&self) -> bool {
+        self.lost.load(Ordering::SeqCst)
+    }
+
+    pub(crate) fn mark_lost(&self, hung: bool) {
+        self.lost.store(true, Ordering::SeqCst);
+        if hung {
+            self.hung.store(true, Ordering::SeqCst);
+        }
+    }
+
+    /// True when work may still be executing on a device that stopped answering.
+    pub(crate) fn is_hung(&self) -> bool {
+        self.hung.load(Ordering::SeqCst)
     }
 
     /// Number of validation errors reported so far (always 0 without validation).
@@ -480,7 +530,12 @@ impl Drop for Context {
     fn drop(&mut self) {
         // SAFETY: every resource holds an Arc<Context>, so nothing created from this device is
         // alive any more. Order: idle, allocator (frees its memory blocks), pool, device,
-        // messenger, instance.
+        // messenger, instance. After a timeout the device may still be executing: leak it all
+        // (the process is about to report the error) rather than wait forever or free memory
+        // in use.
+        if self.is_hung() {
+            return;
+        }
         unsafe {
             let _ = self.device.device_wait_idle();
             if let Ok(mut a) = self.allocator.lock() {

@@ -14,8 +14,10 @@ pub enum GpuError {
     OutOfDeviceMemory { what: String, bytes: u64 },
     #[error("out of host memory in Vulkan call {call}")]
     OutOfHostMemory { call: &'static str },
-    #[error("the Vulkan device was lost during {call} (driver crash, reset or timeout)")]
+    #[error("the Vulkan device was lost during {call} (driver crash, reset or timeout); nothing more can run on it")]
     DeviceLost { call: &'static str },
+    #[error("the Vulkan device did not finish a submission within {seconds} s; giving up on it (device hung or lost)")]
+    Timeout { seconds: u64 },
     #[error("Vulkan call {call} failed: {result:?}")]
     Vulkan { call: &'static str, result: vk::Result },
     #[error("memory allocation for {what} failed: {message}")]

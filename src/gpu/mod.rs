@@ -9,7 +9,11 @@
 //! * Synchronisation is explicit and coarse: work is recorded into one-shot command buffers
 //!   ([`Recorder`]) and [`Context::submit_and_wait`] blocks on a fence. Between dependent
 //!   dispatches the recorder inserts a full compute→compute memory barrier. No resource is
-//!   used by two submissions at once because every submission is waited for.
+//!   used by two submissions at once because every submission is waited for. The wait is
+//!   bounded ([`FENCE_TIMEOUT`]): a device that does not finish counts as lost, further
+//!   submissions fail at once, and objects the hung work may use are leaked, not destroyed.
+//! * Faults can be injected for tests ([`Faults`]): allocations failing with out of device
+//!   memory, a submission reporting a lost device.
 //! * Images live in `GENERAL` layout after creation, so one image can be sampled and written
 //!   as a storage image in different dispatches without layout transitions.
 //! * Every object gets a debug name (visible in validation messages and capture tools).
@@ -20,13 +24,15 @@
 mod commands;
 mod context;
 mod error;
+mod fault;
 mod pipeline;
 mod resources;
 pub mod shader;
 
 pub use commands::{Recorder, Timestamps};
-pub use context::{list_devices, Context, ContextDesc, DeviceInfo, DeviceSelector};
+pub use context::{list_devices, Context, ContextDesc, DeviceInfo, DeviceSelector, FENCE_TIMEOUT};
 pub use error::GpuError;
+pub use fault::Faults;
 pub use pipeline::{Binding, BindingKind, ComputePipeline, DescriptorSet, Resource};
 pub use resources::{Buffer, Image, ImageDesc, Sampler, SamplerDesc};
 

@@ -135,6 +135,9 @@ impl ComputePipeline {
 
 impl Drop for ComputePipeline {
     fn drop(&mut self) {
+        if self.ctx.is_hung() {
+            return; // possibly still in use by a hung submission: leak
+        }
         // SAFETY: no submission using the pipeline is pending (module contract).
         unsafe {
             let d = &self.ctx.device;
@@ -271,6 +274,9 @@ impl DescriptorSet {
 
 impl Drop for DescriptorSet {
     fn drop(&mut self) {
+        if self.ctx.is_hung() {
+            return;
+        }
         // SAFETY: no pending submission uses the set.
         unsafe { self.ctx.device.destroy_descriptor_pool(self.pool, None) };
     }

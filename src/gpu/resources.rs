@@ -24,6 +24,12 @@ fn allocate(
         what: label.into(),
         message: "allocator already destroyed".into(),
     })?;
+    if ctx.injector.allocation_fails(label) {
+        return Err(GpuError::OutOfDeviceMemory {
+            what: label.to_string(),
+            bytes: requirements.size,
+        });
+    }
     allocator
         .allocate(&AllocationCreateDesc {
             name: label,
@@ -156,6 +162,9 @@ impl Buffer {
 
 impl Drop for Buffer {
     fn drop(&mut self) {
+        if self.ctx.is_hung() {
+            return; // may still be in use by the hung submission: leak
+        }
         // SAFETY: all submissions using this buffer were waited for (see module contract).
         unsafe { self.ctx.device.destroy_buffer(self.raw, None) };
         if let Some(a) = self.allocation.take() {
@@ -318,6 +327,9 @@ impl Image {
 
 impl Drop for Image {
     fn drop(&mut self) {
+        if self.ctx.is_hung() {
+            return; // may still be in use by the hung submission: leak
+        }
         // SAFETY: all submissions using this image were waited for (see module contract).
         unsafe {
             self.ctx.device.destroy_image_view(self.view, None);
@@ -374,6 +386,9 @@ impl Sampler {
 
 impl Drop for Sampler {
     fn drop(&mut self) {
+        if self.ctx.is_hung() {
+            return;
+        }
         // SAFETY: all submissions using this sampler were waited for.
         unsafe { self.ctx.device.destroy_sampler(self.raw, None) };
     }

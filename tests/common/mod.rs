@@ -21,6 +21,7 @@ impl Gpu {
             device: DeviceSelector::Auto,
             validation: true,
             require_validation: true,
+            ..Default::default()
         })
         .expect("a Vulkan device with the validation layer (run .ci/ensure-vulkan --test)");
         Gpu {

@@ -1,0 +1,105 @@
+//! Fault injection for tests: makes chosen allocations fail with out-of-device-memory and a
+//! chosen submission report a lost device, so the error paths above can be exercised on any
+//! driver. Off unless asked for (`ContextDesc::faults`, or `CAUSTICA_FAULT` in the
+//! environment); costs one uncontended lock per allocation and submission.
+//!
+//! Syntax of `CAUSTICA_FAULT`: comma-separated items
+//! * `oom:LABEL`: the first allocation whose label contains `LABEL` fails (e.g. `oom:light A`);
+//! * `oom-always:LABEL`: every allocation whose label contains `LABEL` fails;
+//! * `lost:N`: the N-th submission (1-based) reports `VK_ERROR_DEVICE_LOST` without running.
+
+use std::sync::Mutex;
+
+/// What to break, parsed from the `CAUSTICA_FAULT` syntax.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Faults {
+    /// (label substring, fail every time).
+    pub oom: Vec<(String, bool)>,
+    pub lost_at_submit: Option<u64>,
+}
+
+impl Faults {
+    pub fn parse(spec: &str) -> Result<Faults, String> {
+        let mut f = Faults::default();
+        for item in spec.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+            match item.split_once(':') {
+                Some(("oom", label)) => f.oom.push((label.to_string(), false)),
+                Some(("oom-always", label)) => f.oom.push((label.to_string(), true)),
+                Some(("lost", n)) => {
+                    f.lost_at_submit = Some(
+                        n.parse::<u64>()
+                            .ok()
+                            .filter(|n| *n > 0)
+                            .ok_or_else(|| format!("'{item}': expected lost:N with N ≥ 1"))?,
+                    )
+                }
+                _ => return Err(format!("'{item}': expected oom:LABEL, oom-always:LABEL or lost:N")),
+            }
+        }
+        Ok(f)
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.oom.is_empty() && self.lost_at_submit.is_none()
+    }
+}
+
+/// The injector's state inside a context.
+#[derive(Default)]
+pub(crate) struct Injector {
+    state: Mutex<(Faults, u64)>,
+}
+
+impl Injector {
+    pub(crate) fn new(faults: Faults) -> Self {
+        Injector {
+            state: Mutex::new((faults, 0)),
+        }
+    }
+
+    /// True when the allocation labelled `label` must fail.
+    pub(crate) fn allocation_fails(&self, label: &str) -> bool {
+        let Ok(mut s) = self.state.lock() else { return false };
+        let oom = &mut s.0.oom;
+        match oom.iter().position(|(l, _)| label.contains(l.as_str())) {
+            Some(i) => {
+                if !oom[i].1 {
+                    oom.remove(i);
+                }
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// Counts a submission; true when it must report a lost device.
+    pub(crate) fn submission_lost(&self) -> bool {
+        let Ok(mut s) = self.state.lock() else { return false };
+        s.1 += 1;
+        s.0.lost_at_submit == Some(s.1)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_and_fires_as_specified() {
+        let f = Faults::parse("oom:light A, lost:3").unwrap();
+        assert_eq!(f.oom, vec![("light A".to_string(), false)]);
+        let inj = Injector::new(f);
+        assert!(!inj.allocation_fails("volume"));
+        assert!(inj.allocation_fails("light A"));
+        assert!(!inj.allocation_fails("light A"), "oom: fires once");
+        assert_eq!(
+            (0..4).map(|_| inj.submission_lost()).collect::<Vec<_>>(),
+            [false, false, true, false]
+        );
+        let always = Injector::new(Faults::parse("oom-always:x").unwrap());
+        assert!(always.allocation_fails("x") && always.allocation_fails("x"));
+        for bad in ["oom", "lost:0", "lost:x", "boom:1"] {
+            assert!(Faults::parse(bad).is_err(), "{bad}");
+        }
+    }
+}
