@@ -14,7 +14,55 @@ override SPECULAR: bool = true;             // Cook–Torrance highlight at inde
 override CLIP: bool = false;                // clip plane zeroes opacity
 override ETA_VOLUME: bool = false;          // η from a second volume
 override ORTHOGRAPHIC: bool = false;
-override DEBUG_VIEW: u32 = 0u;              // finish pass: 0 image, 1 light, 2 light direction, 3 intensity, 4 medium
+override DEBUG_VIEW: u32 = 0u;              // finish pass: 0 image, 1 light, 2 light direction, 3 concentration, 4 medium
+// Safeguards switched off, one bit each (SG_* below). Always 0 in renders; tests set single
+// bits to show that each safeguard is needed. Constant-folded like the features above.
+override SAFEGUARDS_OFF: u32 = 0u;
+
+// Every clamp and epsilon of the shaders has a bit here (see README, "Numerical safeguards").
+const SG_LIGHT_MIN_Z: u32 = 1u;          // light directions keep z >= MIN_LIGHT_DIR_Z
+const SG_VIEW_MIN_Z: u32 = 2u;           // view rays leave the sweep below MIN_VIEW_DIR_Z
+const SG_INTENSITY_RATIO: u32 = 4u;      // per-plane clamp of the intensity-law ratio
+const SG_CONCENTRATION: u32 = 8u;        // light never exceeds max_concentration × the source
+const SG_FOLD: u32 = 16u;                // no further concentration where the backward map folds
+const SG_MAX_LIGHT: u32 = 32u;           // stored light <= MAX_LIGHT_VALUE
+const SG_MAX_RADIANCE: u32 = 64u;        // accumulated colour <= MAX_RADIANCE
+const SG_FRESNEL_STEP: u32 = 128u;       // FRESNEL_MIN_RELATIVE_STEP
+const SG_GGX_ALPHA: u32 = 256u;          // MIN_GGX_ALPHA
+const SG_SEGMENT_OPACITY: u32 = 512u;    // MIN_SEGMENT_OPACITY
+const SG_GRADIENT_LENGTH: u32 = 1024u;   // MIN_GRADIENT_LENGTH
+const SG_DIRECTION_LENGTH: u32 = 2048u;  // MIN_DIRECTION_LENGTH
+const SG_PERSPECTIVE_DEPTH: u32 = 4096u; // MIN_PERSPECTIVE_DEPTH
+
+fn guarded(bit: u32) -> bool {
+    return (SAFEGUARDS_OFF & bit) == 0u;
+}
+
+// Smallest depth a perspective division sees. The planes start at NEAR_PLANE (Rust) in front
+// of the camera, so this only guards against a zero from rounding.
+const MIN_PERSPECTIVE_DEPTH: f32 = 1e-6;
+// Below this length a direction vector counts as zero and is not normalised (0/0 = NaN).
+const MIN_DIRECTION_LENGTH: f32 = 1e-12;
+// Segments whose reference opacity is below this are rescaled linearly in length: the ratio
+// of the two opacities would be 0/0 for a fully transparent segment.
+const MIN_SEGMENT_OPACITY: f32 = 1e-6;
+// Gradients shorter than this (data value per view unit) give no surface normal, so no
+// highlight: normalising them would divide by zero in homogeneous regions.
+const MIN_GRADIENT_LENGTH: f32 = 1e-6;
+// Largest accumulated radiance in the colour buffer: a quarter of the 16-bit float maximum
+// (65504), so that the final blend with the environment cannot overflow in f16 either.
+// Reached only by sums of sharp highlights (roughness near 0 at many index steps).
+const MAX_RADIANCE: f32 = 16384.0;
+// Floor of the tracked concentration: ratios below 1 (light spreading out) shrink it by up to
+// max_intensity_ratio per plane, and it must not underflow to 0 before the budget divides by it.
+const MIN_CONCENTRATION: f32 = 1e-6;
+
+fn safe_normalize(v: vec3<f32>) -> vec3<f32> {
+    if (guarded(SG_DIRECTION_LENGTH)) {
+        return v / max(length(v), MIN_DIRECTION_LENGTH);
+    }
+    return v / length(v);
+}
 
 struct Params {
     volume_from_view: mat4x4<f32>,   // view-space point -> volume texture coordinates [0,1]^3
@@ -30,6 +78,7 @@ struct Params {
     texel: vec4<f32>,                // 1 / volume dims (xyz), eta table size (w)
     background: vec4<f32>,           // rgb background when there is no environment map; w: 1 = use env map
     limits: vec4<f32>,               // min light dir z, min view dir z, max light value, env map mip count
+    budget: vec4<f32>,               // x: max concentration (light / source light); yzw: unused
 }
 
 struct Immediates {
@@ -89,7 +138,11 @@ fn unproject(t: vec2<f32>, z: f32) -> vec3<f32> {
 fn project(p: vec3<f32>) -> vec2<f32> {
     var xy = p.xy;
     if (!ORTHOGRAPHIC) {
-        xy = p.xy / max(p.z, 1e-6);
+        var z = p.z;
+        if (guarded(SG_PERSPECTIVE_DEPTH)) {
+            z = max(z, MIN_PERSPECTIVE_DEPTH);
+        }
+        xy = p.xy / z;
     }
     return xy * P.projection.xy + P.projection.zw - vec2<f32>(0.5);
 }
@@ -197,7 +250,7 @@ fn segment_particles(a: f32, b: f32, ratio: f32, clipped: bool) -> vec4<f32> {
     let alpha = 1.0 - exp(-e.a * ratio);
     // Rescale the premultiplied colour with the opacity of the longer or shorter segment.
     var scale = ratio;
-    if (alpha_ds > 1e-6) {
+    if (alpha_ds > MIN_SEGMENT_OPACITY || !guarded(SG_SEGMENT_OPACITY)) {
         scale = alpha / alpha_ds;
     }
     return vec4<f32>(e.rgb * scale, alpha);

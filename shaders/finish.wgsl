@@ -10,6 +10,10 @@ fn env_dir_at(texel: vec2<i32>) -> vec3<f32> {
     return normalize((P.world_from_view * vec4<f32>(d, 0.0)).xyz);
 }
 
+// Footprints (texels of the environment map between neighbouring rays) below this count as
+// this: log2(0) = -inf, and what clamp() makes of -inf is not specified on every device.
+const MIN_LOD_FOOTPRINT: f32 = 1e-6;
+
 // Equirectangular lookup (y up). The mip level follows the angle between neighbouring rays,
 // which refraction can make large: without it the background turns to noise.
 fn environment(texel: vec2<i32>) -> vec3<f32> {
@@ -21,7 +25,7 @@ fn environment(texel: vec2<i32>) -> vec3<f32> {
     let dy = env_dir_at(texel + vec2<i32>(0, 1));
     let angle = max(acos(clamp(dot(d, dx), -1.0, 1.0)), acos(clamp(dot(d, dy), -1.0, 1.0)));
     let width = f32(textureDimensions(env_tex).x);
-    let lod = clamp(log2(max(angle * width / 6.2831853, 1e-6)), 0.0, P.limits.w - 1.0);
+    let lod = clamp(log2(max(angle * width / 6.2831853, MIN_LOD_FOOTPRINT)), 0.0, P.limits.w - 1.0);
     let uv = vec2<f32>(atan2(d.x, -d.z) / 6.2831853 + 0.5, acos(clamp(d.y, -1.0, 1.0)) / 3.14159265);
     return textureSampleLevel(env_tex, env_sampler, uv, lod).rgb * P.shading.w;
 }
@@ -50,7 +54,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             out = vec4<f32>(d * 0.5 + 0.5, 1.0);
         }
         case 3u: {
-            // Intensity ratio of the last plane; 1 (no change) shows as 0.5.
+            // Concentration of the light (product of the intensity ratios); 1 shows as 0.5.
             var ratio = 1.0;
             if (REFRACTION) {
                 ratio = textureLoad(light_dir_in, texel, 0).w;

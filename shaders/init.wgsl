@@ -14,8 +14,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     // Light w: data value at the texel's point, the front value of the next segment when
     // view rays are straight.
     textureStore(light_out, texel, vec4<f32>(P.light_color.rgb, value));
-    // w of the light direction holds the last intensity ratio (a debug view).
-    // Light direction w: the last intensity ratio (a debug view). Magnitude η, as for view rays.
+    // Light direction: magnitude η, as for view rays; w: the concentration, 1 at the start.
     if (REFRACTION) {
         textureStore(light_dir_out, texel, vec4<f32>(P.light_dir.xyz * eta_at(start), 1.0));
     }

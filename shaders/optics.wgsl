@@ -9,7 +9,7 @@
 const FRESNEL_MIN_RELATIVE_STEP: f32 = 1e-5;
 
 fn fresnel_dielectric(cos_i: f32, n1: f32, n2: f32) -> f32 {
-    if (abs(n1 - n2) <= FRESNEL_MIN_RELATIVE_STEP * max(n1, n2)) {
+    if (abs(n1 - n2) <= FRESNEL_MIN_RELATIVE_STEP * max(n1, n2) && guarded(SG_FRESNEL_STEP)) {
         return 0.0;
     }
     let c = clamp(cos_i, 0.0, 1.0);
@@ -24,6 +24,11 @@ fn fresnel_dielectric(cos_i: f32, n1: f32, n2: f32) -> f32 {
     return 0.5 * (rs * rs + rp * rp);
 }
 
+// Smallest GGX width α = roughness². At α = 0 the distribution is 0/0 at the highlight's
+// centre; 1e-3 keeps its peak 1/(2π α³) ≈ 1.6e8 finite in 32-bit floats (MAX_RADIANCE bounds
+// what accumulates from it).
+const MIN_GGX_ALPHA: f32 = 1e-3;
+
 // Cook–Torrance with a GGX distribution and Smith-Schlick geometry. `n`, `l` (towards the
 // light) and `v` (towards the viewer) are unit vectors; returns the BRDF times cos(n, l)
 // without the Fresnel factor.
@@ -35,7 +40,10 @@ fn cook_torrance(n: vec3<f32>, l: vec3<f32>, v: vec3<f32>, roughness: f32) -> f3
     }
     let h = normalize(l + v);
     let nh = max(dot(n, h), 0.0);
-    let a = max(roughness * roughness, 1e-3);
+    var a = roughness * roughness;
+    if (guarded(SG_GGX_ALPHA)) {
+        a = max(a, MIN_GGX_ALPHA);
+    }
     let a2 = a * a;
     let denom = nh * nh * (a2 - 1.0) + 1.0;
     let d = a2 / (3.14159265 * denom * denom);

@@ -15,10 +15,10 @@ fn backward_point(texel: vec2<i32>, z: f32) -> vec3<f32> {
 // Unit propagation direction with z bounded away from 0: light may not turn back or travel
 // inside a plane (the sweep only moves forward).
 fn light_direction(v: vec3<f32>) -> vec3<f32> {
-    var d = v / max(length(v), 1e-12);
+    var d = safe_normalize(v);
     let min_z = P.limits.x;
-    if (d.z < min_z) {
-        let side = d.xy / max(length(d.xy), 1e-12);
+    if (d.z < min_z && guarded(SG_LIGHT_MIN_Z)) {
+        let side = safe_normalize(vec3<f32>(d.xy, 0.0)).xy;
         d = vec3<f32>(side * sqrt(1.0 - min_z * min_z), min_z);
     }
     return d;
@@ -106,15 +106,34 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let incoming = gather_light(lp, d, length(ld_raw.xyz), gid.xy, plane);
 
     var intensity = 1.0;
+    // How much the light has been concentrated since it entered (the product of the intensity
+    // ratios along its path, gathered like the light itself; 1 for the unobstructed light).
+    var concentration = incoming.dir.w;
     if (INTENSITY_CORRECTION) {
         // Eq. 13 with central differences between neighbouring texels; the parallelogram area
         // |∂p/∂u × ∂p/∂v| is what |∂p/∂u||∂p/∂v| approximates.
         let du = (backward_point(texel + vec2<i32>(1, 0), z) - backward_point(texel - vec2<i32>(1, 0), z)) * 0.5;
         let dv = (backward_point(texel + vec2<i32>(0, 1), z) - backward_point(texel - vec2<i32>(0, 1), z)) * 0.5;
-        let area_prev = length(cross(du, dv));
-        let max_ratio = P.light_color.w;
-        // Eq. 12: I_i = S_{i-1} / S_i, clamped per plane.
-        intensity = clamp(area_prev / texel_area(z), 1.0 / max_ratio, max_ratio);
+        let jacobian = cross(du, dv);
+        // Eq. 12: I_i = S_{i-1} / S_i.
+        var ratio = length(jacobian) / texel_area(z);
+        if (guarded(SG_INTENSITY_RATIO)) {
+            let max_ratio = P.light_color.w;
+            ratio = clamp(ratio, 1.0 / max_ratio, max_ratio);
+        }
+        // Texel axes map to plane axes with positive orientation (z of u × v > 0) until
+        // neighbouring rays cross: a fold of the backward map, i.e. a focus was passed. There
+        // the light would spread again, which a backward scheme cannot represent; at least it
+        // must not concentrate further.
+        if (jacobian.z <= 0.0 && guarded(SG_FOLD)) {
+            ratio = min(ratio, 1.0);
+        }
+        if (guarded(SG_CONCENTRATION)) {
+            // Power budget: no more than max_concentration × the source light anywhere.
+            ratio = min(ratio, P.budget.x / max(concentration, MIN_CONCENTRATION));
+        }
+        intensity = ratio;
+        concentration = max(concentration * ratio, MIN_CONCENTRATION);
     }
     let value_lp = sample_value(lp);
     let seg = segment_particles(value_lp, value_x, light_ratio, is_clipped(0.5 * (lp + x)));
@@ -122,15 +141,24 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (MEDIUM) {
         transmit *= segment_medium(value_lp, value_x, light_ratio);
     }
-    // Eq. 9: L_i = L_{i-1} I_i (1 - α) m; bounded so 16-bit storage cannot overflow.
-    let light_new = clamp(incoming.color.rgb * intensity * transmit, vec3<f32>(0.0), vec3<f32>(P.limits.z));
+    // Eq. 9: L_i = L_{i-1} I_i (1 - α) m.
+    var light_new = max(incoming.color.rgb * intensity * transmit, vec3<f32>(0.0));
+    if (INTENSITY_CORRECTION && guarded(SG_CONCENTRATION)) {
+        // The budget as a hard bound: bilinear weights and rounding cannot lift the light
+        // above source × concentration (the two are gathered with the same weights).
+        light_new = min(light_new, P.light_color.rgb * concentration);
+    }
+    if (guarded(SG_MAX_LIGHT)) {
+        // Bounded so 16-bit storage cannot overflow.
+        light_new = min(light_new, vec3<f32>(P.limits.z));
+    }
     textureStore(light_out, texel, vec4<f32>(light_new, value_x));
 
     if (REFRACTION) {
         // Eq. 10: ld_i = ld_{i-1} + Δs ∇η, with the actual path length of the segment.
         let g = gradients(x, false);
         let ld_new = incoming.dir.xyz + ds * light_ratio * g.eta;
-        textureStore(light_dir_out, texel, vec4<f32>(ld_new, intensity));
+        textureStore(light_dir_out, texel, vec4<f32>(ld_new, concentration));
     }
 
     // ---- View ray propagation (Eqs. 8 and 14) ----
@@ -147,8 +175,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         medium = textureLoad(medium_in, texel, 0).rgb;
     }
     if (vd.w > 0.0) {
-        let dir = vd.xyz / max(length(vd.xyz), 1e-12);
-        if (dir.z < P.limits.y) {
+        let dir = safe_normalize(vd.xyz);
+        if (dir.z < P.limits.y && guarded(SG_VIEW_MIN_Z)) {
             // The ray turned (nearly) parallel to the planes or back toward the camera: it leaves
             // the sweep here and keeps its direction for the environment lookup.
             vd.w = 0.0;
@@ -172,7 +200,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
             if (SPECULAR) {
                 let gl = length(g.value);
-                if (gl > 1e-6) {
+                if (gl > MIN_GRADIENT_LENGTH || !guarded(SG_GRADIENT_LENGTH)) {
                     var n = -g.value / gl;
                     let v = -dir;
                     if (dot(n, v) < 0.0) {
@@ -182,7 +210,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
                     if (REFRACTION) {
                         l_dir = bilinear(light_dir_in, uv, vec4<f32>(P.light_dir.xyz, 1.0)).xyz;
                     }
-                    let l = -l_dir / max(length(l_dir), 1e-12);
+                    let l = -safe_normalize(l_dir);
                     // Fresnel from the index change between the planes (Section 4.3).
                     var eta_a = eta_of(vp.w);
                     var eta_b = eta_of(value_next);
@@ -197,6 +225,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
             // Eq. 14 (Oddy–Willis compositing).
             let transparency = 1.0 - color.a;
             color = vec4<f32>(color.rgb + transparency * medium * (s.rgb * i_d + i_s), color.a + transparency * s.a);
+            if (guarded(SG_MAX_RADIANCE)) {
+                color = vec4<f32>(min(color.rgb, vec3<f32>(MAX_RADIANCE)), color.a);
+            }
             if (MEDIUM) {
                 medium *= segment_medium(vp.w, value_next, ratio);
             }

@@ -128,6 +128,18 @@ pub struct Light {
     pub softness: f32,
 }
 
+/// Largest light colour × intensity: the light buffers hold 16-bit floats (max 65504), and
+/// caustics concentrate light by up to `quality.max_concentration` before the per-texel clamp
+/// (`render::MAX_LIGHT_VALUE`, the same number) applies.
+pub const MAX_LIGHT_RADIANCE: f32 = 16384.0;
+
+/// Largest `quality.max_concentration`: beyond this the light clamp (`MAX_LIGHT_VALUE`) is
+/// what bounds caustics anyway, for any light of intensity ≥ 1.
+pub const MAX_CONCENTRATION: f32 = 16384.0;
+
+/// Largest `shading.specular` (a scale of the Cook–Torrance term; 1 is physical).
+pub const MAX_SPECULAR: f32 = 100.0;
+
 /// Largest softness: a blur radius equal to the distance travelled (a 45° half-angle source).
 pub const MAX_SOFTNESS: f32 = 1.0;
 
@@ -254,6 +266,10 @@ pub struct Quality {
     pub max_intensity_ratio: f32,
     /// Storage precision of the light, colour and medium state buffers.
     pub precision: Precision,
+    /// Power budget of the caustics: light is never more than this many times the source
+    /// light anywhere. Bounds the light behind a focus, where the backward scheme cannot
+    /// spread it again (see README, "Numerical safeguards").
+    pub max_concentration: f32,
 }
 
 impl Default for Quality {
@@ -267,6 +283,7 @@ impl Default for Quality {
             termination_opacity: 0.995,
             max_intensity_ratio: 4.0,
             precision: Precision::F16,
+            max_concentration: 64.0,
         }
     }
 }
@@ -351,6 +368,9 @@ impl Scene {
         if !(q.max_intensity_ratio.is_finite() && q.max_intensity_ratio >= 1.0) {
             return bad("quality.max_intensity_ratio must be ≥ 1".into());
         }
+        if !(q.max_concentration.is_finite() && (1.0..=MAX_CONCENTRATION).contains(&q.max_concentration)) {
+            return bad(format!("quality.max_concentration must be in [1, {MAX_CONCENTRATION}]"));
+        }
         if !(0.0..=1.0).contains(&q.termination_opacity) {
             return bad("quality.termination_opacity must be in [0, 1]".into());
         }
@@ -366,6 +386,21 @@ impl Scene {
         }
         if l.color.iter().chain([&l.intensity]).any(|c| !c.is_finite() || *c < 0.0) {
             return bad("light colour and intensity must be finite and ≥ 0".into());
+        }
+        if l.color.iter().any(|c| c * l.intensity > MAX_LIGHT_RADIANCE) {
+            return bad(format!(
+                "light colour × intensity must be at most {MAX_LIGHT_RADIANCE} (16-bit light buffers)"
+            ));
+        }
+        let s = &self.shading;
+        if !(s.specular.is_finite() && (0.0..=MAX_SPECULAR).contains(&s.specular)) {
+            return bad(format!(
+                "shading.specular {} must be in [0, {MAX_SPECULAR}]",
+                s.specular
+            ));
+        }
+        if !(0.0..=1.0).contains(&s.roughness) {
+            return bad(format!("shading.roughness {} must be in [0, 1]", s.roughness));
         }
         let c = &self.camera;
         let camera_ok =

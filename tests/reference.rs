@@ -116,7 +116,12 @@ fn constant_eta_does_not_bend_rays() {
     // exactly zero and the Fresnel term of equal indices is zero.
     let mut gpu = Gpu::new();
     let mut images = Vec::new();
-    for eta in [1.0f32, 1.33] {
+    // The third render switches FRESNEL_MIN_RELATIVE_STEP off, to show that it is needed.
+    for (eta, off) in [
+        (1.0f32, 0),
+        (1.33, 0),
+        (1.33, caustica::render::safeguards::FRESNEL_STEP),
+    ] {
         let mut tf = tf();
         tf.eta = Curve::constant(eta);
         let mut scene = head_on_scene(&tf);
@@ -128,11 +133,15 @@ fn constant_eta_does_not_bend_rays() {
         scene.quality.termination_opacity = 1.0;
         let p = prepared(scene, blobs(), tf);
         assert!(p.features().refraction);
-        images.push(gpu.render(&p, &RenderRequest::new(SIZE, SIZE)).image.pixels);
+        let mut req = RenderRequest::new(SIZE, SIZE);
+        req.safeguards_off = off;
+        images.push(gpu.render(&p, &req).image.pixels);
     }
-    let b: Vec<[f32; 3]> = images[1].iter().map(|p| [p[0], p[1], p[2]]).collect();
-    let (mean, max) = diff(&images[0], &b);
-    eprintln!("η 1 vs 1.33: mean {mean:.2e} max {max:.2e}");
+    let rgb = |img: &[[f32; 4]]| -> Vec<[f32; 3]> { img.iter().map(|p| [p[0], p[1], p[2]]).collect() };
+    let (mean, max) = diff(&images[0], &rgb(&images[1]));
+    let (_, max_unguarded) = diff(&images[0], &rgb(&images[2]));
+    eprintln!("η 1 vs 1.33: mean {mean:.2e} max {max:.2e}; without the Fresnel step guard max {max_unguarded:.2e}");
+    assert!(max_unguarded >= 2e-3, "the Fresnel step guard made no difference");
     // Only the last bits of the normalised direction can differ (|v| = η), which moves samples
     // by ~1e-7 voxels. After 16-bit storage that can flip the last bit of a stored light value
     // near 1.0 (2^-10 ≈ 9.8e-4), which reaches the image scaled by a colour ≤ 1: bound 2e-3,

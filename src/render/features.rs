@@ -102,6 +102,8 @@ impl Features {
             ("ETA_VOLUME", f(self.eta_volume)),
             ("ORTHOGRAPHIC", f(self.orthographic)),
             ("DEBUG_VIEW", debug.code() as f64),
+            // Every safeguard on; see `Renderer` for the test-only way to switch them off.
+            ("SAFEGUARDS_OFF", 0.0),
         ]
     }
 

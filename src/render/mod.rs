@@ -7,6 +7,7 @@ mod features;
 mod geometry;
 mod output;
 mod params;
+pub mod safeguards;
 pub mod shaders;
 mod state;
 mod upload;
@@ -14,6 +15,7 @@ mod upload;
 pub use environment::{srgb_to_linear, EnvError, EnvMap};
 pub use features::{DebugView, Features};
 pub use geometry::{light_direction, ViewSetup, MAX_LIGHT_VALUE, MIN_LIGHT_DIR_Z, MIN_VIEW_DIR_Z};
+pub use geometry::{MAX_PLANES, NEAR_PLANE};
 pub use output::{linear_to_srgb, OutputError, RenderedImage};
 pub use params::{Immediates, Params};
 pub use upload::ETA_TABLE_SIZE;
@@ -108,6 +110,9 @@ pub struct RenderRequest {
     pub debug_depth: f32,
     /// Show a progress bar on a terminal.
     pub progress: bool,
+    /// Safeguards to switch off ([`safeguards`] bits). Tests only: 0 in every real render.
+    #[doc(hidden)]
+    pub safeguards_off: u32,
 }
 
 impl RenderRequest {
@@ -118,6 +123,7 @@ impl RenderRequest {
             debug_view: DebugView::Image,
             debug_depth: 1.0,
             progress: false,
+            safeguards_off: 0,
         }
     }
 }
@@ -135,6 +141,10 @@ pub struct RenderStats {
     pub ms_per_plane: f64,
     /// Bytes of the ping-pong state buffers.
     pub state_bytes: u64,
+    /// Precision the render actually used (lower than the scene's after an out-of-memory retry).
+    pub precision: Precision,
+    /// What was reduced to fit into device memory, one line each (empty normally).
+    pub reductions: Vec<String>,
 }
 
 pub struct RenderOutput {
@@ -146,8 +156,12 @@ pub struct RenderOutput {
 pub struct Renderer {
     ctx: Arc<Context>,
     sources: HashMap<(Pass, Precision), ShaderSource>,
-    pipelines: HashMap<(Pass, Precision, Features, DebugView), Arc<ComputePipeline>>,
+    pipelines: HashMap<(Pass, Precision, Features, DebugView, u32), Arc<ComputePipeline>>,
 }
+
+/// Out of device memory at 16-bit precision: halve the image size at most this many times,
+/// rendering at 1/2 then 1/4 of the size and scaling up, before giving up.
+pub const MAX_RESOLUTION_REDUCTIONS: u32 = 2;
 
 impl Renderer {
     pub fn new(ctx: Arc<Context>) -> Result<Self, RenderError> {
@@ -168,9 +182,10 @@ impl Renderer {
         precision: Precision,
         features: Features,
         debug: DebugView,
+        safeguards_off: u32,
     ) -> Result<Arc<ComputePipeline>, RenderError> {
         let debug = if pass == Pass::Finish { debug } else { DebugView::Image };
-        let key = (pass, precision, features, debug);
+        let key = (pass, precision, features, debug, safeguards_off);
         if let Some(p) = self.pipelines.get(&key) {
             return Ok(p.clone());
         }
@@ -178,7 +193,11 @@ impl Renderer {
             std::collections::hash_map::Entry::Occupied(e) => e.into_mut(),
             std::collections::hash_map::Entry::Vacant(e) => e.insert(pass.parse(precision)?),
         };
-        let spirv = source.specialise("main", &features.constants(debug))?;
+        let mut constants = features.constants(debug);
+        for c in constants.iter_mut().filter(|c| c.0 == "SAFEGUARDS_OFF") {
+            c.1 = safeguards_off as f64;
+        }
+        let spirv = source.specialise("main", &constants)?;
         let label = format!("{} [{} {}]", pass.file(), features.describe(), precision.name());
         let p = Arc::new(ComputePipeline::new(
             &self.ctx,
@@ -193,15 +212,62 @@ impl Renderer {
     }
 
     /// Renders one image (or a debug buffer) of `prepared`.
+    ///
+    /// Out of device memory is retried: first with 16-bit buffers when the scene asked for
+    /// 32-bit ones, then at half and a quarter of the image size (scaled up to the requested
+    /// size). Each reduction is logged as a warning and listed in [`RenderStats::reductions`].
     pub fn render(&mut self, prepared: &PreparedScene, req: &RenderRequest) -> Result<RenderOutput, RenderError> {
+        let mut precision = prepared.scene.quality.precision;
+        let mut sub = req.clone();
+        let mut reductions = Vec::new();
+        loop {
+            let e = match self.render_once(prepared, &sub, precision) {
+                Ok(mut out) => {
+                    if (sub.width, sub.height) != (req.width, req.height) {
+                        out.image = out.image.resized(req.width, req.height);
+                    }
+                    out.stats.reductions = reductions;
+                    return Ok(out);
+                }
+                Err(RenderError::Gpu(e)) if e.is_out_of_memory() => e,
+                Err(e) => return Err(e),
+            };
+            let halvings = reductions
+                .iter()
+                .filter(|r: &&String| r.starts_with("resolution"))
+                .count() as u32;
+            let reduction = if precision == Precision::F32 {
+                precision = Precision::F16;
+                "precision f32 → f16 (16-bit light, colour and medium buffers)".to_string()
+            } else if halvings < MAX_RESOLUTION_REDUCTIONS && (sub.width > 1 || sub.height > 1) {
+                sub.width = sub.width.div_ceil(2);
+                sub.height = sub.height.div_ceil(2);
+                format!(
+                    "resolution {}×{} rendered and scaled up to {}×{}",
+                    sub.width, sub.height, req.width, req.height
+                )
+            } else {
+                return Err(RenderError::Gpu(e));
+            };
+            log::warn!("{e}; retrying with {reduction}");
+            reductions.push(reduction);
+        }
+    }
+
+    fn render_once(
+        &mut self,
+        prepared: &PreparedScene,
+        req: &RenderRequest,
+        precision: Precision,
+    ) -> Result<RenderOutput, RenderError> {
         let features = prepared.features();
-        let precision = prepared.scene.quality.precision;
+        let off = req.safeguards_off;
         let pipelines = [
-            self.pipeline(Pass::Init, precision, features, req.debug_view)?,
-            self.pipeline(Pass::Propagate, precision, features, req.debug_view)?,
-            self.pipeline(Pass::Finish, precision, features, req.debug_view)?,
+            self.pipeline(Pass::Init, precision, features, req.debug_view, off)?,
+            self.pipeline(Pass::Propagate, precision, features, req.debug_view, off)?,
+            self.pipeline(Pass::Finish, precision, features, req.debug_view, off)?,
         ];
-        state::run(&self.ctx, prepared, req, features, &pipelines)
+        state::run(&self.ctx, prepared, req, features, precision, &pipelines)
     }
 }
 

@@ -64,6 +64,30 @@ impl RenderedImage {
         }
     }
 
+    /// Bilinear rescale to `width`×`height` (pixel centres aligned), for renders made at a
+    /// reduced size. Bilinear weights are convex, so bounds on the values carry over.
+    pub fn resized(&self, width: u32, height: u32) -> RenderedImage {
+        let (sw, sh) = (self.width as usize, self.height as usize);
+        let at = |x: usize, y: usize| self.pixels[y.min(sh - 1) * sw + x.min(sw - 1)];
+        let mut pixels = Vec::with_capacity(width as usize * height as usize);
+        for y in 0..height {
+            let fy = ((y as f32 + 0.5) * sh as f32 / height as f32 - 0.5).max(0.0);
+            let (y0, ty) = (fy.floor() as usize, fy.fract());
+            for x in 0..width {
+                let fx = ((x as f32 + 0.5) * sw as f32 / width as f32 - 0.5).max(0.0);
+                let (x0, tx) = (fx.floor() as usize, fx.fract());
+                let mut p = [0.0f32; 4];
+                for (c, v) in p.iter_mut().enumerate() {
+                    let top = at(x0, y0)[c] * (1.0 - tx) + at(x0 + 1, y0)[c] * tx;
+                    let bottom = at(x0, y0 + 1)[c] * (1.0 - tx) + at(x0 + 1, y0 + 1)[c] * tx;
+                    *v = top * (1.0 - ty) + bottom * ty;
+                }
+                pixels.push(p);
+            }
+        }
+        RenderedImage { width, height, pixels }
+    }
+
     /// Counts of non-finite and negative channel values (rgb).
     pub fn count_invalid(&self) -> (usize, usize) {
         let rgb = self.pixels.iter().flat_map(|p| &p[..3]);

@@ -19,6 +19,8 @@ pub struct Params {
     pub texel: [f32; 4],
     pub background: [f32; 4],
     pub limits: [f32; 4],
+    /// x: largest concentration of the light (quality.max_concentration); yzw unused.
+    pub budget: [f32; 4],
 }
 
 /// Mirrors `struct Immediates` (push constants).
@@ -38,7 +40,7 @@ mod tests {
     #[test]
     fn params_layout_matches_wgsl() {
         let src = format!(
-            "{}\n@compute @workgroup_size(1) fn main() {{ _ = P.limits; _ = I.seed; }}",
+            "{}\n@compute @workgroup_size(1) fn main() {{ _ = P.budget; _ = I.seed; }}",
             crate::render::shaders::COMMON
         );
         let module = naga::front::wgsl::parse_str(&src).expect("common.wgsl parses");
@@ -57,7 +59,7 @@ mod tests {
         let naga::TypeInner::Struct { members, .. } = ty.inner else {
             panic!()
         };
-        let expected = [0, 64, 128, 192, 208, 224, 240, 256, 272, 288, 304, 320, 336];
+        let expected = [0, 64, 128, 192, 208, 224, 240, 256, 272, 288, 304, 320, 336, 352];
         let offsets: Vec<u32> = members.iter().map(|m| m.offset).collect();
         assert_eq!(offsets, expected);
         assert_eq!(std::mem::offset_of!(Params, limits), 336);

@@ -20,9 +20,13 @@ use super::{
 };
 use crate::scene::Precision;
 
-/// Planes recorded per submission: keeps each submission short (progress, responsiveness,
-/// watchdogs) while the per-submission overhead stays negligible.
+/// Planes recorded per submission at most: keeps each submission short (progress,
+/// responsiveness, watchdogs) while the per-submission overhead stays negligible.
 const PLANES_PER_SUBMIT: u32 = 128;
+/// Texel updates per submission at most (planes × pixels), so that one submission stays far
+/// below the fence timeout (`gpu::FENCE_TIMEOUT`) even at the device's largest image on a CPU
+/// driver: 2^24 texels take about 5 s on lavapipe on two cores.
+const TEXELS_PER_SUBMIT: u64 = 1 << 24;
 const WORKGROUP: u32 = 8;
 
 /// The six state buffers of Algorithm 1, in binding order, with their storage formats at
@@ -111,6 +115,7 @@ fn make_params(prepared: &PreparedScene, view: &ViewSetup, req: &RenderRequest, 
         ],
         background: background(&scene.environment),
         limits: [MIN_LIGHT_DIR_Z, MIN_VIEW_DIR_Z, MAX_LIGHT_VALUE, env_levels as f32],
+        budget: [scene.quality.max_concentration, 0.0, 0.0, 0.0],
     }
 }
 
@@ -130,6 +135,7 @@ pub(super) fn run(
     prepared: &PreparedScene,
     req: &RenderRequest,
     features: Features,
+    precision: Precision,
     pipelines: &[Arc<ComputePipeline>; 3],
 ) -> Result<RenderOutput, RenderError> {
     let (w, h) = (req.width, req.height);
@@ -181,7 +187,7 @@ pub(super) fn run(
     let mut state_bytes = 0u64;
     let mut state: [Vec<Image>; 2] = [Vec::new(), Vec::new()];
     for (side, images) in state.iter_mut().enumerate() {
-        for (k, (name, format)) in state_formats(prepared.scene.quality.precision).iter().enumerate() {
+        for (k, (name, format)) in state_formats(precision).iter().enumerate() {
             let (iw, ih) = if needed(&features, k) { (w, h) } else { (1, 1) };
             let label = format!("{name} {}", ["A", "B"][side]);
             let img = Image::new(ctx, ImageDesc::storage_2d(&label, *format, iw, ih))?;
@@ -227,6 +233,7 @@ pub(super) fn run(
         sets.push([make(0)?, make(1)?]);
     }
     let groups = [w.div_ceil(WORKGROUP), h.div_ceil(WORKGROUP), 1];
+    let planes_per_submit = (TEXELS_PER_SUBMIT / (w as u64 * h as u64)).clamp(1, PLANES_PER_SUBMIT as u64) as u32;
     let push = |plane: u32| Immediates {
         plane_index: plane,
         seed: 0x9e37_79b9,
@@ -248,7 +255,7 @@ pub(super) fn run(
         let ts = Timestamps::new(ctx, 2)?;
         r.reset_timestamps(&ts);
         r.timestamp(&ts, 0);
-        let end = (plane + PLANES_PER_SUBMIT).min(planes_run);
+        let end = (plane + planes_per_submit).min(planes_run);
         while plane < end {
             let read = ((plane - 1) % 2) as usize;
             r.dispatch(&pipelines[1], &sets[1][read], bytemuck::bytes_of(&push(plane)), groups);
@@ -297,6 +304,8 @@ pub(super) fn run(
                     gpu_ms,
                     ms_per_plane: gpu_ms / planes_run.max(1) as f64,
                     state_bytes,
+                    precision,
+                    reductions: Vec::new(),
                 },
             });
         }
