@@ -17,6 +17,26 @@ const EXIT_INPUT: u8 = 1;
 const EXIT_NO_VULKAN: u8 = 3;
 const EXIT_GPU: u8 = 4;
 
+/// The validation layer reported errors: the render is not trustworthy (exit code 4).
+#[derive(Debug, thiserror::Error)]
+#[error(
+    "the Vulkan validation layer reported {count} error(s) during the render (first: {first}); not writing {output}"
+)]
+struct ValidationFailed {
+    count: u64,
+    first: String,
+    output: String,
+}
+
+/// The image holds NaN, infinite or negative values: a renderer fault (exit code 4).
+#[derive(Debug, thiserror::Error)]
+#[error("the render produced {non_finite} non-finite and {negative} negative values; not writing {output}")]
+struct InvalidImage {
+    non_finite: usize,
+    negative: usize,
+    output: String,
+}
+
 #[derive(Parser)]
 #[command(
     name = "caustica",
@@ -207,12 +227,22 @@ fn render(args: &RenderArgs) -> Result<()> {
         req.debug_depth = args.at_depth;
     }
     let out = renderer.render(&prepared, &req)?;
+    if ctx.validation_errors() > 0 {
+        return Err(ValidationFailed {
+            count: ctx.validation_errors(),
+            first: ctx.validation_messages().first().cloned().unwrap_or_default(),
+            output: args.output.display().to_string(),
+        }
+        .into());
+    }
     let (non_finite, negative) = out.image.count_invalid();
     if non_finite > 0 || negative > 0 {
-        bail!(
-            "the render produced {non_finite} non-finite and {negative} negative values; not writing {}",
-            args.output.display()
-        );
+        return Err(InvalidImage {
+            non_finite,
+            negative,
+            output: args.output.display().to_string(),
+        }
+        .into());
     }
     out.image.save(&args.output)?;
     let s = &out.stats;
@@ -221,7 +251,7 @@ fn render(args: &RenderArgs) -> Result<()> {
             "device: {}\nfeatures: {}\nprecision: {}\nplanes: {} (integrated {})\nms per plane: {:.3}\ntotal GPU ms: {:.1}\nstate buffers: {:.1} MiB",
             ctx.info.name,
             s.features.describe(),
-            scene.quality.precision.name(),
+            s.precision.name(),
             s.planes,
             s.planes_run,
             s.ms_per_plane,
@@ -230,9 +260,6 @@ fn render(args: &RenderArgs) -> Result<()> {
         );
     }
     eprintln!("wrote {} ({}×{})", args.output.display(), args.size.0, args.size.1);
-    if ctx.validation_errors() > 0 {
-        bail!("{} Vulkan validation errors were reported", ctx.validation_errors());
-    }
     Ok(())
 }
 
@@ -288,6 +315,9 @@ fn run(cli: Cli) -> Result<()> {
 }
 
 fn exit_code(err: &anyhow::Error) -> u8 {
+    if err.downcast_ref::<ValidationFailed>().is_some() || err.downcast_ref::<InvalidImage>().is_some() {
+        return EXIT_GPU;
+    }
     let gpu = err
         .downcast_ref::<GpuError>()
         .or_else(|| match err.downcast_ref::<RenderError>() {
