@@ -441,6 +441,9 @@ impl Context {
         };
         ctx.set_name(command_pool, "caustica command pool");
         ctx.set_name(queue, "caustica compute queue");
+        if desc.faults.validation_error {
+            ctx.provoke_validation_error();
+        }
         Ok(Arc::new(ctx))
     }
 

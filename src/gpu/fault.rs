@@ -6,7 +6,9 @@
 //! Syntax of `CAUSTICA_FAULT`: comma-separated items
 //! * `oom:LABEL`: the first allocation whose label contains `LABEL` fails (e.g. `oom:light A`);
 //! * `oom-always:LABEL`: every allocation whose label contains `LABEL` fails;
-//! * `lost:N`: the N-th submission (1-based) reports `VK_ERROR_DEVICE_LOST` without running.
+//! * `lost:N`: the N-th submission (1-based) reports `VK_ERROR_DEVICE_LOST` without running;
+//! * `validation`: one deliberately invalid Vulkan call when the context is created (checks
+//!   how validation errors are reported; needs the validation layer).
 
 use std::sync::Mutex;
 
@@ -16,12 +18,17 @@ pub struct Faults {
     /// (label substring, fail every time).
     pub oom: Vec<(String, bool)>,
     pub lost_at_submit: Option<u64>,
+    pub validation_error: bool,
 }
 
 impl Faults {
     pub fn parse(spec: &str) -> Result<Faults, String> {
         let mut f = Faults::default();
         for item in spec.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+            if item == "validation" {
+                f.validation_error = true;
+                continue;
+            }
             match item.split_once(':') {
                 Some(("oom", label)) => f.oom.push((label.to_string(), false)),
                 Some(("oom-always", label)) => f.oom.push((label.to_string(), true)),
@@ -33,14 +40,18 @@ impl Faults {
                             .ok_or_else(|| format!("'{item}': expected lost:N with N ≥ 1"))?,
                     )
                 }
-                _ => return Err(format!("'{item}': expected oom:LABEL, oom-always:LABEL or lost:N")),
+                _ => {
+                    return Err(format!(
+                        "'{item}': expected oom:LABEL, oom-always:LABEL, lost:N or validation"
+                    ))
+                }
             }
         }
         Ok(f)
     }
 
     pub fn is_empty(&self) -> bool {
-        self.oom.is_empty() && self.lost_at_submit.is_none()
+        self.oom.is_empty() && self.lost_at_submit.is_none() && !self.validation_error
     }
 }
 
@@ -86,7 +97,8 @@ mod tests {
 
     #[test]
     fn parses_and_fires_as_specified() {
-        let f = Faults::parse("oom:light A, lost:3").unwrap();
+        let f = Faults::parse("oom:light A, lost:3,validation").unwrap();
+        assert!(f.validation_error);
         assert_eq!(f.oom, vec![("light A".to_string(), false)]);
         let inj = Injector::new(f);
         assert!(!inj.allocation_fails("volume"));

@@ -50,6 +50,28 @@ fn allocate(
         })
 }
 
+/// Maps a failed create call, naming the resource when the driver is out of memory (some
+/// drivers refuse an oversized buffer or image already at creation).
+fn oom_of(label: &str, bytes: u64, call: &'static str, result: vk::Result) -> GpuError {
+    match result {
+        vk::Result::ERROR_OUT_OF_DEVICE_MEMORY => GpuError::OutOfDeviceMemory {
+            what: label.to_string(),
+            bytes,
+        },
+        r => GpuError::vk(call, r),
+    }
+}
+
+/// Bytes per texel of the formats this crate uses (for messages; 16 for any other).
+fn texel_bytes(format: vk::Format) -> u64 {
+    match format {
+        vk::Format::R16_UNORM => 2,
+        vk::Format::R32_SFLOAT => 4,
+        vk::Format::R16G16B16A16_SFLOAT => 8,
+        _ => 16,
+    }
+}
+
 fn free(ctx: &Context, allocation: Allocation) {
     if let Ok(mut guard) = ctx.allocator.lock() {
         if let Some(a) = guard.as_mut() {
@@ -102,7 +124,7 @@ impl Buffer {
             .sharing_mode(vk::SharingMode::EXCLUSIVE);
         let d = &ctx.device;
         // SAFETY: valid create info; the buffer is destroyed in Drop or on the error paths.
-        let raw = unsafe { d.create_buffer(&info, None) }.map_err(vk_err("vkCreateBuffer"))?;
+        let raw = unsafe { d.create_buffer(&info, None) }.map_err(|e| oom_of(label, size, "vkCreateBuffer", e))?;
         let requirements = unsafe { d.get_buffer_memory_requirements(raw) };
         let allocation = match allocate(ctx, label, requirements, location, true) {
             Ok(a) => a,
@@ -264,7 +286,8 @@ impl Image {
             .initial_layout(vk::ImageLayout::UNDEFINED);
         let d = &ctx.device;
         // SAFETY: valid create info; objects are destroyed in Drop or on error paths below.
-        let raw = unsafe { d.create_image(&info, None) }.map_err(vk_err("vkCreateImage"))?;
+        let bytes = desc.extent.iter().map(|e| *e as u64).product::<u64>() * texel_bytes(desc.format);
+        let raw = unsafe { d.create_image(&info, None) }.map_err(|e| oom_of(&desc.label, bytes, "vkCreateImage", e))?;
         let requirements = unsafe { d.get_image_memory_requirements(raw) };
         let allocation = match allocate(ctx, &desc.label, requirements, MemoryLocation::GpuOnly, false) {
             Ok(a) => a,
