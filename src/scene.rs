@@ -402,11 +402,34 @@ impl Scene {
         if !(0.0..=1.0).contains(&s.roughness) {
             return bad(format!("shading.roughness {} must be in [0, 1]", s.roughness));
         }
+        if !l.azimuth_deg.is_finite() {
+            return bad("light.azimuth_deg must be finite".into());
+        }
         let c = &self.camera;
-        let camera_ok =
-            c.distance.is_finite() && c.distance > 0.0 && (1.0..=170.0).contains(&c.fov_deg) && c.zoom > 0.0;
+        let camera_ok = c.distance.is_finite()
+            && c.distance > 0.0
+            && (1.0..=170.0).contains(&c.fov_deg)
+            && c.zoom.is_finite()
+            && c.zoom > 0.0
+            && [c.yaw_deg, c.pitch_deg].iter().chain(&c.target).all(|v| v.is_finite());
         if !camera_ok {
-            return bad("camera: distance and zoom must be > 0 and fov_deg in [1, 170]".into());
+            return bad(
+                "camera: distance and zoom must be finite and > 0, fov_deg in [1, 170], angles and target finite"
+                    .into(),
+            );
+        }
+        let env_ok = match &self.environment {
+            Environment::Studio { intensity } | Environment::Image { intensity, .. } => {
+                intensity.is_finite() && (0.0..=MAX_LIGHT_RADIANCE).contains(intensity)
+            }
+            Environment::Color { color } => color
+                .iter()
+                .all(|v| v.is_finite() && (0.0..=MAX_LIGHT_RADIANCE).contains(v)),
+        };
+        if !env_ok {
+            return bad(format!(
+                "environment intensity and colour must be finite and in [0, {MAX_LIGHT_RADIANCE}]"
+            ));
         }
         if let Some(w) = self.window {
             if !(w[0].is_finite() && w[1].is_finite() && w[1] > w[0]) {
@@ -417,7 +440,63 @@ impl Scene {
             if clip.normal.iter().all(|v| *v == 0.0) || clip.normal.iter().any(|v| !v.is_finite()) {
                 return bad("clip.normal must be a finite non-zero vector".into());
             }
+            if !clip.offset.is_finite() {
+                return bad("clip.offset must be finite".into());
+            }
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every number a user can type is range-checked: NaN, ±Inf and out-of-range values of
+    /// each field are rejected with a message naming the field.
+    #[test]
+    fn non_finite_and_out_of_range_values_are_rejected() {
+        let base = builtin("ball-lens").unwrap().scene;
+        base.validate().unwrap();
+        type Edit = fn(&mut Scene, f32);
+        let fields: [(&str, Edit); 16] = [
+            ("sample_distance", |s, v| s.quality.sample_distance = v),
+            ("max_intensity_ratio", |s, v| s.quality.max_intensity_ratio = v),
+            ("max_concentration", |s, v| s.quality.max_concentration = v),
+            ("termination_opacity", |s, v| s.quality.termination_opacity = v),
+            ("light.polar_deg", |s, v| s.light.polar_deg = v),
+            ("light.azimuth_deg", |s, v| s.light.azimuth_deg = v),
+            ("light.softness", |s, v| s.light.softness = v),
+            ("light colour", |s, v| s.light.intensity = v),
+            ("shading.specular", |s, v| s.shading.specular = v),
+            ("shading.roughness", |s, v| s.shading.roughness = v),
+            ("camera", |s, v| s.camera.distance = v),
+            ("camera", |s, v| s.camera.zoom = v),
+            ("camera", |s, v| s.camera.yaw_deg = v),
+            ("camera", |s, v| s.camera.target[1] = v),
+            ("environment", |s, v| {
+                s.environment = Environment::Studio { intensity: v }
+            }),
+            ("clip.offset", |s, v| {
+                s.clip = Some(ClipPlane {
+                    normal: [1.0, 0.0, 0.0],
+                    offset: v,
+                })
+            }),
+        ];
+        for (name, edit) in fields {
+            for v in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+                let mut s = base.clone();
+                edit(&mut s, v);
+                let err = s.validate().expect_err(name).to_string();
+                assert!(err.contains(name), "{name} = {v}: '{err}'");
+            }
+        }
+        let mut s = base.clone();
+        s.light.intensity = 2.0 * MAX_LIGHT_RADIANCE;
+        assert!(s.validate().is_err(), "a light beyond the 16-bit light buffers");
+        let mut s = base;
+        s.shading.roughness = 1.5;
+        assert!(s.validate().is_err());
     }
 }

@@ -21,6 +21,10 @@ pub const NEAR_PLANE: f32 = 1e-3;
 /// More planes than this means a sample distance far below a voxel on a huge volume.
 pub const MAX_PLANES: u32 = 1 << 15;
 
+/// Camera pitch is held within ±this many degrees: at ±90° the view direction is parallel to
+/// the world's up axis and the camera's right axis (up × forward) would be the zero vector.
+pub const MAX_PITCH_DEG: f32 = 89.0;
+
 /// The view transform and plane sweep of one render.
 #[derive(Clone, Debug)]
 pub struct ViewSetup {
@@ -39,7 +43,7 @@ pub struct ViewSetup {
 
 pub fn camera_position(camera: &Camera, radius: f32) -> (Vec3, Vec3) {
     let yaw = camera.yaw_deg.to_radians();
-    let pitch = camera.pitch_deg.clamp(-89.0, 89.0).to_radians();
+    let pitch = camera.pitch_deg.clamp(-MAX_PITCH_DEG, MAX_PITCH_DEG).to_radians();
     let target = Vec3::from(camera.target) * radius;
     let offset = Vec3::new(yaw.sin() * pitch.cos(), pitch.sin(), -yaw.cos() * pitch.cos());
     (target + offset * camera.distance * radius, target)
@@ -157,6 +161,61 @@ mod tests {
         assert!(centre.x.abs() < 1e-3 && centre.y.abs() < 1e-3 && centre.z > 0.0);
         let tex = v.volume_from_view().transform_point3(centre);
         assert!((tex - Vec3::splat(0.5)).length() < 1e-4);
+    }
+
+    #[test]
+    fn camera_inside_the_volume_starts_the_sweep_at_the_near_plane() {
+        // Without NEAR_PLANE the first plane would lie at or behind the camera, where the
+        // perspective division breaks down.
+        let mut scene = builtin("ball-lens").unwrap().scene;
+        for distance in [0.5, 1e-3, 1e-6] {
+            scene.camera.distance = distance;
+            let v = ViewSetup::new(&scene, [32; 3], [1.0; 3], 16, 16).unwrap();
+            assert!(
+                v.z_first >= NEAR_PLANE * v.radius * 0.999,
+                "distance {distance}: {}",
+                v.z_first
+            );
+            assert!(v.planes <= MAX_PLANES);
+        }
+    }
+
+    #[test]
+    fn a_camera_straight_above_keeps_an_orthonormal_view() {
+        let mut scene = builtin("ball-lens").unwrap().scene;
+        for pitch in [89.0, 90.0, -90.0, 1000.0] {
+            scene.camera.pitch_deg = pitch;
+            let v = ViewSetup::new(&scene, [32; 3], [1.0; 3], 16, 16).unwrap();
+            let r = Mat3::from_mat4(v.world_from_view);
+            let err = (r * r.transpose() - Mat3::IDENTITY)
+                .to_cols_array()
+                .iter()
+                .fold(0.0f32, |m, e| m.max(e.abs()));
+            assert!(err < 1e-5, "pitch {pitch}: rotation off by {err}");
+        }
+    }
+
+    #[test]
+    fn too_many_planes_are_refused() {
+        // 0.01 voxels on a 2048³ volume would be 355 000 planes: refused with advice instead
+        // of a render that takes days.
+        let mut scene = builtin("ball-lens").unwrap().scene;
+        scene.quality.sample_distance = 0.01;
+        let err = ViewSetup::new(&scene, [2048; 3], [1.0; 3], 16, 16).unwrap_err();
+        assert!(err.contains("increase quality.sample_distance"), "{err}");
+        scene.quality.sample_distance = 1.0;
+        assert!(ViewSetup::new(&scene, [2048; 3], [1.0; 3], 16, 16).is_ok());
+    }
+
+    #[test]
+    fn the_largest_light_angle_is_not_bent_by_the_direction_clamp() {
+        // MIN_LIGHT_DIR_Z only acts on light that refraction turned further than any scene
+        // may ask for: the unrefracted light at MAX_LIGHT_POLAR_DEG passes untouched.
+        let l = Light {
+            polar_deg: crate::scene::MAX_LIGHT_POLAR_DEG,
+            ..Light::default()
+        };
+        assert!(light_direction(&l).z >= MIN_LIGHT_DIR_Z);
     }
 
     #[test]

@@ -48,8 +48,13 @@ impl Staging {
     }
 }
 
+/// 16-bit floats for the tables and the environment map, saturated at the largest finite
+/// half (65504): a brighter pixel of an HDR environment image would otherwise become
+/// infinite on the GPU.
 fn halves(values: impl Iterator<Item = f32>) -> Vec<u8> {
-    values.flat_map(|v| f16::from_f32(v).to_le_bytes()).collect()
+    values
+        .flat_map(|v| f16::from_f32(v.min(f16::MAX.to_f32())).to_le_bytes())
+        .collect()
 }
 
 fn volume_image(ctx: &Arc<Context>, label: &str, vol: &Volume) -> Result<Image, GpuError> {
@@ -215,5 +220,18 @@ fn missing() -> GpuError {
     GpuError::Allocation {
         what: "scene textures".into(),
         message: "internal: texture list out of order".into(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn halves_saturate_instead_of_overflowing() {
+        let bytes = super::halves([1.0f32, 1e6, 65504.0].into_iter());
+        let back: Vec<f32> = bytes
+            .chunks(2)
+            .map(|b| half::f16::from_le_bytes([b[0], b[1]]).to_f32())
+            .collect();
+        assert_eq!(back, [1.0, 65504.0, 65504.0]);
     }
 }
