@@ -507,46 +507,6 @@ fn brightest_allowed_light() {
     assert!(p.scene.validate().is_err(), "a brighter light must be rejected");
 }
 
-/// Discovery aid, not a check: renders stress scenes with each safeguard switched off and
-/// prints what breaks. `cargo test --release --test extremes -- --ignored --nocapture`
-#[test]
-#[ignore]
-fn explore_safeguards() {
-    let mut gpu = Gpu::new();
-    let head_on = |mut p: PreparedScene| {
-        p.scene.light.polar_deg = 0.0;
-        p.scene.camera.projection = Projection::Orthographic;
-        p
-    };
-    let scenes: Vec<(&str, PreparedScene)> = vec![
-        ("eta3", head_on(ball_scene(3.0, hard_ball(N, 0.3), false))),
-        ("turning back", head_on(turning_back_scene())),
-        ("focus", focus_scene(64.0)),
-        ("blobs", {
-            let tf = blobs_tf();
-            prepared(head_on_scene(&tf), sphere(N, 0.35, 1.0), tf)
-        }),
-    ];
-    for (name, p) in &scenes {
-        for sg in std::iter::once(None).chain(safeguards::ALL.iter().take(5).map(Some)) {
-            let mut req = request(SIZE, SIZE);
-            req.safeguards_off = sg.map(|s| s.bit).unwrap_or(0);
-            req.debug_view = DebugView::Light;
-            let mut line = String::new();
-            for depth in [0.0f32, 0.25, 0.5, 0.75, 1.0] {
-                req.debug_depth = depth;
-                let light = gpu.render(p, &req);
-                let power: f64 = light.image.pixels.iter().map(|q| q[1] as f64).sum();
-                line += &format!(" {power:9.1}/{:7.2}", light.image.max_value());
-            }
-            eprintln!(
-                "{name:14} off {:18} power/max {line}",
-                sg.map(|s| s.name).unwrap_or("-")
-            );
-        }
-    }
-}
-
 // ---- Each safeguard is needed: switched off, the property it protects breaks. ----
 
 /// Light buffer at relative depth `depth` with the safeguards `off` switched off.
