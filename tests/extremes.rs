@@ -722,3 +722,44 @@ fn safeguard_gradient_length_handles_homogeneous_regions() {
     eprintln!("GRADIENT_LENGTH: non-finite values {on} (on), {off} (off)");
     assert!(on == 0 && off > 0);
 }
+
+#[test]
+fn safeguard_view_min_z_stops_rays_that_turned_back() {
+    // Behind a totally reflecting interface (η 4 → 1, its normal 30° off the view axis) lies
+    // an opaque red wall. Rays reflected back toward the camera must not see it. Without the
+    // safeguard they keep stepping with a negative z direction, i.e. mirrored, and composite
+    // the wall anyway.
+    let mut gpu = Gpu::new();
+    let mut tf = plain_tf(vec![[0.0, 0.0], [0.5, 0.0], [0.6, 1.0]], vec![[0.0, 1.0, 0.0, 0.0]]);
+    tf.eta = Curve {
+        points: vec![[0.0, 1.0], [1.0, 4.0]],
+    };
+    let mut scene = head_on_scene(&tf);
+    scene.shading.specular = 0.0;
+    scene.eta_volume = Some(caustica::scene::VolumeSource::Builtin {
+        name: "test".into(),
+        resolution: 0,
+    });
+    let wall = volume_from(N, |_, _, z| if z > 0.85 { 1.0 } else { 0.0 });
+    let mut p = prepared(scene, wall, tf);
+    p.eta_volume = Some(std::sync::Arc::new(reflecting_interface(N)));
+    assert!(p.features().eta_volume);
+    let red_pixels = |img: &caustica::render::RenderedImage| img.pixels.iter().filter(|q| q[0] > 0.1).count();
+    let on = red_pixels(&image_with(&mut gpu, &p, SIZE, 0));
+    let off = red_pixels(&image_with(&mut gpu, &p, SIZE, safeguards::VIEW_MIN_Z));
+    // Without the interface the wall shows wherever the box is (a third of this view: the
+    // orthographic view spans the box's diagonal), so it is not invisible for another reason.
+    p.eta_volume = Some(std::sync::Arc::new(volume_from(N, |_, _, _| 0.0)));
+    let clear = red_pixels(&image_with(&mut gpu, &p, SIZE, 0));
+    eprintln!(
+        "VIEW_MIN_Z: pixels showing the wall {on} (on), {off} (off), {clear} without the interface, of {}",
+        SIZE * SIZE
+    );
+    // Orthographic and head-on, every ray meets the interface 30° off its normal, beyond the
+    // critical angle (14.5°): all are reflected.
+    assert!(
+        clear > (SIZE * SIZE / 4) as usize,
+        "the wall is not visible at all: {clear}"
+    );
+    assert!(on == 0 && off > 0, "on {on}, off {off}");
+}
