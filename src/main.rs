@@ -331,6 +331,26 @@ fn exit_code(err: &anyhow::Error) -> u8 {
     }
 }
 
+fn is_hang(err: &anyhow::Error) -> bool {
+    matches!(
+        err.downcast_ref::<RenderError>(),
+        Some(RenderError::Gpu(GpuError::Timeout { .. }))
+    ) || matches!(err.downcast_ref::<GpuError>(), Some(GpuError::Timeout { .. }))
+}
+
+/// Exits without running the C library's exit handlers: after a device hang the driver may
+/// still be executing the abandoned work, and tearing the driver down under it can crash or
+/// block. stderr is unbuffered, so the message is already out.
+fn exit_now(code: u8) -> ! {
+    #[cfg(unix)]
+    // SAFETY: _exit only ends the process; no Rust state needs to outlive it.
+    unsafe {
+        libc::_exit(code as i32)
+    }
+    #[cfg(not(unix))]
+    std::process::exit(code as i32)
+}
+
 /// Prints library warnings (`log::warn!`) to stderr; quiet otherwise.
 struct StderrLogger;
 
@@ -357,7 +377,11 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(err) => {
             eprintln!("error: {err:#}");
-            ExitCode::from(exit_code(&err))
+            let code = exit_code(&err);
+            if is_hang(&err) {
+                exit_now(code);
+            }
+            ExitCode::from(code)
         }
     }
 }

@@ -309,7 +309,8 @@ impl Recorder {
         // On a timeout the fence and command buffer are leaked with the rest (see `Context`).
         unsafe {
             d.end_command_buffer(self.cmd).map_err(vk_err("vkEndCommandBuffer"))?;
-            if ctx.injector.submission_lost() {
+            let (inject_lost, inject_hang) = ctx.injector.next_submission();
+            if inject_lost {
                 ctx.mark_lost(false);
                 return Err(GpuError::DeviceLost { call: "vkQueueSubmit" });
             }
@@ -326,7 +327,11 @@ impl Recorder {
                 return Err(GpuError::vk("vkQueueSubmit", e));
             }
             self.submitted = true;
-            let timeout_ns = ctx.fence_timeout.as_nanos().min(u64::MAX as u128) as u64;
+            let timeout_ns = if inject_hang {
+                0
+            } else {
+                ctx.fence_timeout.as_nanos().min(u64::MAX as u128) as u64
+            };
             match d.wait_for_fences(&[fence], true, timeout_ns) {
                 Ok(()) => {
                     d.destroy_fence(fence, None);

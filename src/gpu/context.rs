@@ -537,6 +537,12 @@ impl Drop for Context {
         // (the process is about to report the error) rather than wait forever or free memory
         // in use.
         if self.is_hung() {
+            // The allocator's memory blocks and the canary (the debug messenger's user data)
+            // may still be touched by the running work and the driver: leak them too.
+            if let Ok(mut a) = self.allocator.lock() {
+                std::mem::forget(a.take());
+            }
+            std::mem::forget(std::mem::take(&mut self.canary));
             return;
         }
         unsafe {

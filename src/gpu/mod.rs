@@ -12,6 +12,8 @@
 //!   used by two submissions at once because every submission is waited for. The wait is
 //!   bounded ([`FENCE_TIMEOUT`]): a device that does not finish counts as lost, further
 //!   submissions fail at once, and objects the hung work may use are leaked, not destroyed.
+//!   The driver's threads may still run that work, so a program should end with `_exit`
+//!   after a hang rather than run the C library's exit handlers (the CLI does).
 //! * Faults can be injected for tests ([`Faults`]): allocations failing with out of device
 //!   memory, a submission reporting a lost device.
 //! * Images live in `GENERAL` layout after creation, so one image can be sampled and written
