@@ -296,7 +296,7 @@ fn degenerate_volumes() {
         scene.camera.projection = Projection::Perspective;
         scene.camera.yaw_deg = 30.0;
         scene.camera.pitch_deg = 20.0;
-        scene.window = None;
+        // Window [0, 1] (from head_on_scene): the 1×1×1 volume's own range would be empty.
         let p = prepared(scene, volume, tf.clone());
         check(
             &mut gpu,
@@ -380,7 +380,7 @@ fn viewports_from_one_pixel_to_the_device_maximum() {
     let mut gpu = Gpu::new();
     let max = gpu.ctx.limits().max_image_dimension2_d;
     let p = ball_scene(1.5, sphere(N, 0.3, 1.0), true);
-    for (w, h) in [(1, 1), (1, 2), (3, 1), (64, 64), (max, 1), (1, max.min(4096))] {
+    for (w, h) in [(1, 1), (1, 2), (3, 1), (64, 64), (max, 1), (1, max)] {
         check(
             &mut gpu,
             &format!("viewport {w}×{h}"),
