@@ -219,6 +219,7 @@ impl Renderer {
     pub fn render(&mut self, prepared: &PreparedScene, req: &RenderRequest) -> Result<RenderOutput, RenderError> {
         let mut precision = prepared.scene.quality.precision;
         let mut sub = req.clone();
+        let mut halvings = 0;
         let mut reductions = Vec::new();
         loop {
             let e = match self.render_once(prepared, &sub, precision) {
@@ -232,14 +233,11 @@ impl Renderer {
                 Err(RenderError::Gpu(e)) if e.is_out_of_memory() => e,
                 Err(e) => return Err(e),
             };
-            let halvings = reductions
-                .iter()
-                .filter(|r: &&String| r.starts_with("resolution"))
-                .count() as u32;
             let reduction = if precision == Precision::F32 {
                 precision = Precision::F16;
                 "precision f32 → f16 (16-bit light, colour and medium buffers)".to_string()
             } else if halvings < MAX_RESOLUTION_REDUCTIONS && (sub.width > 1 || sub.height > 1) {
+                halvings += 1;
                 sub.width = sub.width.div_ceil(2);
                 sub.height = sub.height.div_ceil(2);
                 format!(

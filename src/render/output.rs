@@ -100,3 +100,31 @@ impl RenderedImage {
         self.pixels.iter().flat_map(|p| &p[..3]).fold(0.0f32, |m, v| m.max(*v))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn resizing_stays_within_the_values_and_keeps_flat_regions() {
+        let img = RenderedImage {
+            width: 2,
+            height: 2,
+            pixels: vec![[0.0; 4], [1.0; 4], [2.0; 4], [4.0; 4]],
+        };
+        let big = img.resized(5, 3);
+        assert_eq!((big.width, big.height, big.pixels.len()), (5, 3, 15));
+        assert!(big.pixels.iter().flatten().all(|v| (0.0..=4.0).contains(v)));
+        assert_eq!(
+            big.pixels[0][0], 0.0,
+            "corner texel centres map onto the source corners"
+        );
+        assert_eq!(big.pixels[14][0], 4.0);
+        let flat = RenderedImage {
+            width: 3,
+            height: 1,
+            pixels: vec![[0.5; 4]; 3],
+        };
+        assert!(flat.resized(7, 2).pixels.iter().flatten().all(|v| *v == 0.5));
+    }
+}
