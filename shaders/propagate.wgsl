@@ -106,8 +106,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let incoming = gather_light(lp, d, length(ld_raw.xyz), gid.xy, plane);
 
     var intensity = 1.0;
-    // How much the light has been concentrated since it entered (the product of the intensity
-    // ratios along its path, gathered like the light itself; 1 for the unobstructed light).
+    // How much the light has been concentrated since it entered: Eq. 12 applied along the
+    // path, S_0 / S_i, the product of the intensity ratios (gathered like the light itself;
+    // 1 for the unobstructed light).
     var concentration = incoming.dir.w;
     if (INTENSITY_CORRECTION) {
         // Eq. 13 with central differences between neighbouring texels; the parallelogram area
