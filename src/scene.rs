@@ -237,6 +237,39 @@ impl Precision {
     }
 }
 
+/// Reconstruction of the η gradient that bends the rays.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum Gradient {
+    /// Central differences one voxel apart: six lookups, second-order accurate.
+    #[default]
+    Central,
+    /// Forward differences: four lookups, first-order accurate (biased half a voxel ahead).
+    Forward,
+}
+
+impl Gradient {
+    pub fn parse(s: &str) -> Option<Gradient> {
+        match s {
+            "central" => Some(Gradient::Central),
+            "forward" => Some(Gradient::Forward),
+            _ => None,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Gradient::Central => "central",
+            Gradient::Forward => "forward",
+        }
+    }
+
+    /// The value of the shaders' `GRADIENT` override.
+    pub fn code(self) -> u32 {
+        self as u32
+    }
+}
+
 /// The speed/accuracy knobs.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -254,6 +287,8 @@ pub struct Quality {
     pub max_intensity_ratio: f32,
     /// Storage precision of the light, colour and medium state buffers.
     pub precision: Precision,
+    /// Reconstruction of ∇η.
+    pub gradient: Gradient,
 }
 
 impl Default for Quality {
@@ -267,6 +302,7 @@ impl Default for Quality {
             termination_opacity: 0.995,
             max_intensity_ratio: 4.0,
             precision: Precision::F16,
+            gradient: Gradient::Central,
         }
     }
 }
