@@ -73,6 +73,10 @@ struct BenchArgs {
     /// Vulkan device: index or name substring (see `caustica devices`).
     #[arg(long, default_value = "auto")]
     device: String,
+    /// Instead of the sweep, measure the reference renderer's convergence (error against a
+    /// finer run of itself versus rays per voxel² and step length) on the first scene; no GPU.
+    #[arg(long)]
+    convergence: bool,
 }
 
 #[derive(clap::Args)]
@@ -283,6 +287,35 @@ fn bench(args: &BenchArgs) -> Result<()> {
     }
     if let Some(r) = args.resolution {
         plan.resolution = r;
+    }
+    if args.convergence {
+        let path = args.out.join("convergence.md");
+        std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+        let runs: &[(f64, f64)] = if args.quick {
+            &[(1.0, 0.5), (4.0, 0.5), (16.0, 0.5), (16.0, 1.0), (16.0, 0.25)]
+        } else {
+            &[
+                (1.0, 0.25),
+                (4.0, 0.25),
+                (16.0, 0.25),
+                (64.0, 0.25),
+                (64.0, 1.0),
+                (64.0, 0.5),
+                (64.0, 0.125),
+            ]
+        };
+        let truth = if args.quick { (64.0, 0.125) } else { (256.0, 0.0625) };
+        bench::convergence::run(
+            &plan.scenes[0],
+            plan.resolution,
+            plan.reference_size,
+            runs,
+            truth,
+            &path,
+        )?;
+        print!("{}", std::fs::read_to_string(&path)?);
+        eprintln!("wrote {}", path.display());
+        return Ok(());
     }
     let ctx = Context::new(&ContextDesc::from_env(DeviceSelector::parse(&args.device)))?;
     // Render errors keep their type so that they map to the GPU exit codes.

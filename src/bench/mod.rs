@@ -3,6 +3,7 @@
 //! (`reference`). Writes a Markdown table, a CSV file and a PNG plot of error against time
 //! with each scene's Pareto front.
 
+pub mod convergence;
 pub mod metrics;
 pub mod plot;
 mod report;
@@ -128,7 +129,7 @@ impl Plan {
             reference_size: 64,
             reference: ReferenceSettings {
                 photons: PhotonSettings {
-                    rays_per_voxel2: 4.0,
+                    rays_per_voxel2: 16.0,
                     ..PhotonSettings::default()
                 },
                 view_step_voxels: 0.5,

@@ -173,6 +173,21 @@ pub(crate) fn basis(d: DVec3) -> (DVec3, DVec3) {
     (a1, d.cross(a1))
 }
 
+/// Shirley–Chiu concentric map of the unit square onto the unit disc (keeps strata compact).
+fn concentric_disc(u: f64, v: f64) -> (f64, f64) {
+    let (a, b) = (2.0 * u - 1.0, 2.0 * v - 1.0);
+    if a == 0.0 && b == 0.0 {
+        return (0.0, 0.0);
+    }
+    let quarter = std::f64::consts::FRAC_PI_4;
+    let (r, phi) = if a.abs() > b.abs() {
+        (a, quarter * (b / a))
+    } else {
+        (b, 2.0 * quarter - quarter * (a / b))
+    };
+    (r * phi.cos(), r * phi.sin())
+}
+
 /// Power (per unit E0) left after optical depth `tau` over length `len`, and the integral of
 /// power × length over the segment.
 fn attenuate(power: [f64; 3], tau: [f64; 3], len: f64) -> ([f64; 3], [f64; 3]) {
@@ -249,13 +264,16 @@ pub fn trace<M: Medium + ?Sized>(
         for col in 0..n {
             let u = -radius + (col as f64 + offset.0) * spacing;
             let v = -radius + (row as f64 + offset.1) * spacing;
-            let (s1, s2) = (rng.next_f64(), rng.next_f64());
+            // Direction over the source's disc of directions, stratified over each 4×4 tile of
+            // neighbouring rays (random directions leave ~25% noise in the fluence at 16 rays
+            // per voxel² of a soft light; stratified ones a few percent).
+            let sx = ((col % 4) as f64 + rng.next_f64()) / 4.0;
+            let sy = ((row % 4) as f64 + rng.next_f64()) / 4.0;
             if u * u + v * v > radius * radius {
                 continue;
             }
-            // Direction uniformly over the source's disc of directions.
-            let (r, phi) = (s1.sqrt() * light.softness, s2 * std::f64::consts::TAU);
-            let dir = (d + a1 * (r * phi.cos()) + a2 * (r * phi.sin())).normalize();
+            let (dx, dy) = concentric_disc(sx, sy);
+            let dir = (d + (a1 * dx + a2 * dy) * light.softness).normalize();
             let o = start + a1 * u + a2 * v;
             grid.rays += 1;
             let Some((t0, t1)) = rk4::box_interval(o, dir, lo, hi) else {

@@ -234,28 +234,53 @@ fn view_ray<M: Medium + ?Sized>(
             ),
             None => (rk4::step(medium, ray, h), h),
         };
-        // Four sub-segments per step for extinction and light, so steps in the transfer
-        // functions and sharp shadows are resolved well below the step length.
+        // Four sub-segments per step for extinction and light, each split further (down to
+        // 1/64 of a step) wherever it is more than 5% opaque, so that dense surfaces are
+        // resolved where their opacity rises rather than wherever the step lattice falls.
         const SUB: usize = 4;
-        let piece = len / SUB as f64;
         for k in 0..SUB {
-            let p = ray.x.lerp(next.x, (k as f64 + 0.5) / SUB as f64);
-            let opt = medium.optics(p);
-            if opt == Default::default() {
-                continue;
-            }
-            let a = 1.0 - (-opt.tau_alpha * piece).exp();
-            let light = if a > 0.0 { grid.sample(p) } else { [0.0; 3] };
-            let t = 1.0 - alpha;
-            for c in 0..3 {
-                color[c] += t * m[c] * a * opt.color[c] * light[c];
-                m[c] *= (-opt.tau_medium[c] * piece).exp();
-            }
-            alpha += t * a;
+            let a = ray.x.lerp(next.x, k as f64 / SUB as f64);
+            let b = ray.x.lerp(next.x, (k + 1) as f64 / SUB as f64);
+            composite(medium, grid, a, b, len / SUB as f64, 4, &mut color, &mut alpha, &mut m);
         }
         ray = next;
         budget -= len;
     }
     let env = background.radiance(ray.v);
     [0, 1, 2].map(|c| color[c] + (1.0 - alpha) * m[c] * env[c])
+}
+
+/// Oddy–Willis compositing (Eq. 14) of the straight piece from `a` to `b` (length `len`),
+/// sampled at its midpoint, or of its two halves while it is more than 5% opaque and `splits`
+/// remain.
+#[allow(clippy::too_many_arguments)]
+fn composite<M: Medium + ?Sized>(
+    medium: &M,
+    grid: &LightGrid,
+    a: DVec3,
+    b: DVec3,
+    len: f64,
+    splits: u32,
+    color: &mut [f64; 3],
+    alpha: &mut f64,
+    m: &mut [f64; 3],
+) {
+    let p = a.lerp(b, 0.5);
+    let opt = medium.optics(p);
+    if opt == Default::default() {
+        return;
+    }
+    let piece_alpha = 1.0 - (-opt.tau_alpha * len).exp();
+    if piece_alpha > 0.05 && splits > 0 {
+        composite(medium, grid, a, p, 0.5 * len, splits - 1, color, alpha, m);
+        composite(medium, grid, p, b, 0.5 * len, splits - 1, color, alpha, m);
+        return;
+    }
+    let light = if piece_alpha > 0.0 { grid.sample(p) } else { [0.0; 3] };
+    let t = 1.0 - *alpha;
+    for c in 0..3 {
+        color[c] += t * m[c] * piece_alpha * opt.color[c] * light[c];
+        m[c] *= (-opt.tau_medium[c] * len).exp();
+    }
+    *alpha += t * piece_alpha;
 }
