@@ -220,7 +220,7 @@ impl Medium for VolumeMedium {
         let u = (p + self.half_extent) / self.spacing;
         let mut index = [0usize; 3];
         for a in 0..3 {
-            if !(u[a] >= 0.0) || u[a] >= self.dims[a] as f64 {
+            if u[a].is_nan() || u[a] < 0.0 || u[a] >= self.dims[a] as f64 {
                 return None;
             }
             index[a] = (u[a] as usize) / BLOCK;

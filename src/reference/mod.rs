@@ -8,6 +8,9 @@
 //!   [`photons`] traces light forward from the distant source into a fluence grid (caustics
 //!   from ray density), and view rays composite with the Oddy–Willis model.
 
+// Per-channel loops index several [f64; 3] arrays at once; iterators would hide that.
+#![allow(clippy::needless_range_loop)]
+
 pub mod medium;
 pub mod photons;
 pub mod rk4;
