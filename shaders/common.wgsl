@@ -15,6 +15,7 @@ override CLIP: bool = false;                // clip plane zeroes opacity
 override ETA_VOLUME: bool = false;          // η from a second volume
 override ORTHOGRAPHIC: bool = false;
 override DEBUG_VIEW: u32 = 0u;              // finish pass: 0 image, 1 light, 2 light direction, 3 concentration, 4 medium
+override GRADIENT: u32 = 0u;                // gradient reconstruction: 0 central differences, 1 forward differences
 // Safeguards switched off, one bit each (SG_* below). Always 0 in renders; tests set single
 // bits to show that each safeguard is needed. Constant-folded like the features above.
 override SAFEGUARDS_OFF: u32 = 0u;
@@ -214,24 +215,48 @@ struct Gradients {
     eta: vec3<f32>,    // ∇η in view space, from η_tf applied to the neighbours (central differences)
 }
 
-// Central differences one voxel apart. ∇η applies η_tf to each neighbour before differencing,
-// so steps in η_tf produce the right jump instead of the zero a chain rule would give.
+// Differences one voxel apart. ∇η applies η_tf to each neighbour before differencing, so
+// steps in η_tf produce the right jump instead of the zero a chain rule would give.
+// GRADIENT 0: central differences (6 lookups, second order). GRADIENT 1: forward differences
+// (3 lookups + the centre, first order: the gradient of the point half a voxel ahead on each
+// axis); doubled to match the central-difference scaling of `gradient_to_view`.
 fn gradients(p: vec3<f32>, want_value: bool) -> Gradients {
     let c = volume_coord(p);
     var dv = vec3<f32>(0.0);
     var de = vec3<f32>(0.0);
+    var centre_eta = 0.0;
+    var centre_value = 0.0;
+    if (GRADIENT == 1u) {
+        let s = eta_source_value(c);
+        centre_eta = eta_of(s);
+        centre_value = s;
+        if (ETA_VOLUME && want_value) {
+            centre_value = textureSampleLevel(volume_tex, volume_sampler, c, 0.0).r;
+        }
+    }
     for (var k = 0; k < 3; k++) {
         var h = vec3<f32>(0.0);
         h[k] = P.texel[k];
         let ep = eta_source_value(c + h);
-        let em = eta_source_value(c - h);
-        de[k] = eta_of(ep) - eta_of(em);
-        if (want_value) {
-            if (ETA_VOLUME) {
-                dv[k] = textureSampleLevel(volume_tex, volume_sampler, c + h, 0.0).r
-                      - textureSampleLevel(volume_tex, volume_sampler, c - h, 0.0).r;
-            } else {
-                dv[k] = ep - em;
+        if (GRADIENT == 1u) {
+            de[k] = 2.0 * (eta_of(ep) - centre_eta);
+            if (want_value) {
+                var vp = ep;
+                if (ETA_VOLUME) {
+                    vp = textureSampleLevel(volume_tex, volume_sampler, c + h, 0.0).r;
+                }
+                dv[k] = 2.0 * (vp - centre_value);
+            }
+        } else {
+            let em = eta_source_value(c - h);
+            de[k] = eta_of(ep) - eta_of(em);
+            if (want_value) {
+                if (ETA_VOLUME) {
+                    dv[k] = textureSampleLevel(volume_tex, volume_sampler, c + h, 0.0).r
+                          - textureSampleLevel(volume_tex, volume_sampler, c - h, 0.0).r;
+                } else {
+                    dv[k] = ep - em;
+                }
             }
         }
     }

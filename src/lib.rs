@@ -11,11 +11,13 @@
 //! | [`scene`] | everything one image depends on; TOML scene files; built-in scenes |
 //! | [`gpu`] | a thin documented layer over ash: device, memory, images, pipelines, naga shaders |
 //! | [`render`] | the method on top of `gpu`: planes, propagation, environment, output; `Features` |
-//! | [`reference`] | CPU renderers used to check the GPU one |
+//! | [`reference`] | CPU renderers used to check the GPU one; the independent reference (f64, photons) |
+//! | [`bench`] | the speed–accuracy sweep: GPU frame times and errors against the reference |
 //!
 //! Each layer only calls the one below it: `main` uses `render` + `scene`; `render` uses `gpu`;
 //! nothing in `gpu` knows what a volume is.
 
+pub mod bench;
 pub mod gpu;
 pub mod reference;
 pub mod render;

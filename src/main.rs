@@ -69,6 +69,34 @@ enum Command {
         #[arg(long)]
         raw: bool,
     },
+    /// Measure the speed–accuracy trade: GPU frame times and errors against the reference renderer.
+    Bench(BenchArgs),
+}
+
+#[derive(clap::Args)]
+struct BenchArgs {
+    /// Built-in scenes, comma separated (default: all; see `caustica scenes`).
+    #[arg(long, value_delimiter = ',')]
+    scenes: Vec<String>,
+    /// A small sweep (40³ volumes, viewports up to 256²) that runs in minutes on lavapipe.
+    #[arg(long)]
+    quick: bool,
+    /// Directory for bench.md, bench.csv, bench.png and the reference images.
+    #[arg(long, default_value = "bench")]
+    out: PathBuf,
+    /// GPU frames per setting (default 5, or 3 with --quick).
+    #[arg(long)]
+    frames: Option<u32>,
+    /// Voxels along the longest axis of the built-in volumes (default 64, or 40 with --quick).
+    #[arg(long)]
+    resolution: Option<usize>,
+    /// Vulkan device: index or name substring (see `caustica devices`).
+    #[arg(long, default_value = "auto")]
+    device: String,
+    /// Instead of the sweep, measure the reference renderer's convergence (error against a
+    /// finer run of itself versus rays per voxel² and step length) on the first scene; no GPU.
+    #[arg(long)]
+    convergence: bool,
 }
 
 #[derive(clap::Args)]
@@ -263,9 +291,82 @@ fn render(args: &RenderArgs) -> Result<()> {
     Ok(())
 }
 
+fn bench(args: &BenchArgs) -> Result<()> {
+    use caustica::bench::{self, BenchError, Plan};
+    let scenes: Vec<String> = if args.scenes.is_empty() {
+        BUILTIN_SCENES.iter().map(|s| s.to_string()).collect()
+    } else {
+        args.scenes.clone()
+    };
+    for name in &scenes {
+        builtin(name)?;
+    }
+    let mut plan = if args.quick {
+        Plan::quick(scenes)
+    } else {
+        Plan::full(scenes)
+    };
+    if let Some(f) = args.frames {
+        if f == 0 {
+            bail!("--frames must be at least 1");
+        }
+        plan.frames = f;
+    }
+    if let Some(r) = args.resolution {
+        plan.resolution = r;
+    }
+    if args.convergence {
+        let path = args.out.join("convergence.md");
+        std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+        let runs: &[(f64, f64)] = if args.quick {
+            &[(1.0, 0.5), (4.0, 0.5), (16.0, 0.5), (16.0, 1.0), (16.0, 0.25)]
+        } else {
+            &[
+                (1.0, 0.25),
+                (4.0, 0.25),
+                (16.0, 0.25),
+                (64.0, 0.25),
+                (64.0, 1.0),
+                (64.0, 0.5),
+                (64.0, 0.125),
+            ]
+        };
+        let truth = if args.quick { (64.0, 0.125) } else { (256.0, 0.0625) };
+        bench::convergence::run(
+            &plan.scenes[0],
+            plan.resolution,
+            plan.reference_size,
+            runs,
+            truth,
+            &path,
+        )?;
+        print!("{}", std::fs::read_to_string(&path)?);
+        eprintln!("wrote {}", path.display());
+        return Ok(());
+    }
+    let ctx = Context::new(&ContextDesc::from_env(DeviceSelector::parse(&args.device)))?;
+    // Render errors keep their type so that they map to the GPU exit codes.
+    let report = bench::run(ctx.clone(), &plan, &args.out, true).map_err(|e| match e {
+        BenchError::Render(r) => anyhow::Error::from(r),
+        other => anyhow::Error::from(other),
+    })?;
+    print!("{}", std::fs::read_to_string(&report.markdown)?);
+    eprintln!(
+        "wrote {}, {} and {}",
+        report.markdown.display(),
+        report.csv.display(),
+        report.plot.display()
+    );
+    if ctx.validation_errors() > 0 {
+        bail!("{} Vulkan validation errors were reported", ctx.validation_errors());
+    }
+    Ok(())
+}
+
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Render(args) => render(&args),
+        Command::Bench(args) => bench(&args),
         Command::Scenes => {
             for name in BUILTIN_SCENES {
                 let s = builtin(name)?;

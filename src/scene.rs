@@ -249,6 +249,39 @@ impl Precision {
     }
 }
 
+/// Reconstruction of the η gradient that bends the rays.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum Gradient {
+    /// Central differences one voxel apart: six lookups, second-order accurate.
+    #[default]
+    Central,
+    /// Forward differences: four lookups, first-order accurate (biased half a voxel ahead).
+    Forward,
+}
+
+impl Gradient {
+    pub fn parse(s: &str) -> Option<Gradient> {
+        match s {
+            "central" => Some(Gradient::Central),
+            "forward" => Some(Gradient::Forward),
+            _ => None,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Gradient::Central => "central",
+            Gradient::Forward => "forward",
+        }
+    }
+
+    /// The value of the shaders' `GRADIENT` override.
+    pub fn code(self) -> u32 {
+        self as u32
+    }
+}
+
 /// The speed/accuracy knobs.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -270,6 +303,8 @@ pub struct Quality {
     /// light anywhere. Bounds the light behind a focus, where the backward scheme cannot
     /// spread it again (see README, "Numerical safeguards").
     pub max_concentration: f32,
+    /// Reconstruction of ∇η.
+    pub gradient: Gradient,
 }
 
 impl Default for Quality {
@@ -284,6 +319,7 @@ impl Default for Quality {
             max_intensity_ratio: 4.0,
             precision: Precision::F16,
             max_concentration: 64.0,
+            gradient: Gradient::Central,
         }
     }
 }

@@ -359,3 +359,28 @@ fn dataset_with_an_unknown_name_fails() {
     assert!(!stderr.contains("panicked"), "{stderr}");
     assert!(!path.exists());
 }
+
+#[test]
+fn bench_rejects_unknown_scenes_and_zero_frames_before_the_gpu() {
+    let s = Scratch::new("bench");
+    for (args, expected) in [
+        (
+            &["bench", "--scenes", "ball-lens,nope"][..],
+            "unknown built-in scene 'nope'",
+        ),
+        (
+            &["bench", "--quick", "--frames", "0"][..],
+            "--frames must be at least 1",
+        ),
+    ] {
+        let out = caustica(&s.dir, args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(EXIT_INPUT), "{args:?}: {stderr}");
+        assert!(
+            stderr.contains(expected),
+            "{args:?}: '{stderr}' should mention '{expected}'"
+        );
+        assert!(!stderr.contains("panicked"), "{stderr}");
+        assert!(!s.path("bench").exists(), "{args:?} created the output directory");
+    }
+}

@@ -82,9 +82,10 @@ fn representative_variants_build_on_the_device() {
         clip: true,
         eta_volume: true,
         orthographic: false,
+        gradient: caustica::scene::Gradient::Central,
     };
     let mut variants = vec![Features::default(), all];
-    for i in 0..8 {
+    for i in 0..9 {
         let mut f = Features::default();
         match i {
             0 => f.refraction = true,
@@ -94,7 +95,11 @@ fn representative_variants_build_on_the_device() {
             4 => f.specular = true,
             5 => f.clip = true,
             6 => f.eta_volume = true,
-            _ => f.orthographic = true,
+            7 => f.orthographic = true,
+            _ => {
+                f.refraction = true;
+                f.gradient = caustica::scene::Gradient::Forward;
+            }
         }
         variants.push(f);
     }

@@ -1,3 +1,22 @@
-//! CPU renderers that mirror parts of the optical model, for checking the GPU renderer.
+//! CPU renderers that mirror the optical model, for checking and measuring the GPU one.
+//!
+//! - [`straight`]: emission–absorption along straight rays with the GPU's own planes and
+//!   tables; checks the sweep where the method has an exact discrete counterpart.
+//! - the independent reference ([`render`]): written for accuracy, not speed (f64, rayon).
+//!   It shares only the scene, transfer-function, volume and camera types with the GPU path:
+//!   [`medium`] is the continuous optical field, [`rk4`] integrates the ray equation,
+//!   [`photons`] traces light forward from the distant source into a fluence grid (caustics
+//!   from ray density), and view rays composite with the Oddy–Willis model.
 
+// Per-channel loops index several [f64; 3] arrays at once; iterators would hide that.
+#![allow(clippy::needless_range_loop)]
+
+pub mod medium;
+pub mod photons;
+pub mod rk4;
 pub mod straight;
+#[cfg(test)]
+mod tests;
+mod view;
+
+pub use view::{render, ReferenceError, ReferenceSettings};

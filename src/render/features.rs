@@ -1,7 +1,7 @@
 //! `Features`: what a scene needs the renderer to model. Each feature is an `override` constant
 //! in the shaders; a disabled feature is constant-folded away and its buffers are not allocated.
 
-use crate::scene::{Projection, Scene, Toggle};
+use crate::scene::{Gradient, Projection, Scene, Toggle};
 use crate::transfer::TransferFunctions;
 
 /// What one image needs. Derived from the scene ([`Features::for_scene`]).
@@ -20,6 +20,8 @@ pub struct Features {
     pub clip: bool,
     pub eta_volume: bool,
     pub orthographic: bool,
+    /// Reconstruction of ∇η (and of the normal for highlights); only used with refraction.
+    pub gradient: Gradient,
 }
 
 /// Diagnostic buffers `--debug-view` can show instead of the image.
@@ -67,10 +69,14 @@ impl Features {
             clip: scene.clip.is_some(),
             eta_volume: refraction && scene.eta_volume.is_some(),
             orthographic: scene.camera.projection == Projection::Orthographic,
+            // Without refraction no gradient is computed: one variant is enough.
+            gradient: if refraction { q.gradient } else { Gradient::Central },
         }
     }
 
-    /// Every combination of the boolean features (for shader validation).
+    /// Every combination of the boolean features (for shader validation). The gradient
+    /// scheme alternates with the parity of the combination, so that each scheme meets every
+    /// feature switched on and off without doubling the variant count.
     pub fn all_combinations() -> Vec<Features> {
         (0u32..256)
             .map(|bits| {
@@ -84,6 +90,11 @@ impl Features {
                     clip: b(5),
                     eta_volume: b(6),
                     orthographic: b(7),
+                    gradient: if bits.count_ones() % 2 == 1 {
+                        Gradient::Forward
+                    } else {
+                        Gradient::Central
+                    },
                 }
             })
             .collect()
@@ -104,6 +115,7 @@ impl Features {
             ("DEBUG_VIEW", debug.code() as f64),
             // Every safeguard on; see `Renderer` for the test-only way to switch them off.
             ("SAFEGUARDS_OFF", 0.0),
+            ("GRADIENT", self.gradient.code() as f64),
         ]
     }
 
@@ -119,6 +131,7 @@ impl Features {
             (self.clip, "clip"),
             (self.eta_volume, "eta-volume"),
             (self.orthographic, "orthographic"),
+            (self.gradient == Gradient::Forward, "forward-gradient"),
         ] {
             if on {
                 v.push(name);

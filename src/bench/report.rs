@@ -1,0 +1,106 @@
+//! The bench's Markdown table and CSV file.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use super::{plot::pareto_front, Plan, Row};
+
+fn on(b: bool) -> &'static str {
+    if b {
+        "on"
+    } else {
+        "off"
+    }
+}
+
+/// Indices of the rows on their scene's Pareto front (time vs relative L1).
+fn front_rows(rows: &[Row]) -> Vec<bool> {
+    let mut on_front = vec![false; rows.len()];
+    let mut scenes: Vec<&str> = rows.iter().map(|r| r.scene.as_str()).collect();
+    scenes.dedup();
+    for scene in scenes {
+        let idx: Vec<usize> = (0..rows.len()).filter(|&i| rows[i].scene == scene).collect();
+        let points: Vec<(f64, f64)> = idx.iter().map(|&i| (rows[i].ms_median, rows[i].error.rel_l1)).collect();
+        for k in pareto_front(&points) {
+            on_front[idx[k]] = true;
+        }
+    }
+    on_front
+}
+
+pub fn write_markdown(path: &Path, rows: &[Row], device: &str, plan: &Plan) -> Result<(), String> {
+    let mut s = String::new();
+    let r = &plan.reference;
+    let _ = writeln!(
+        s,
+        "Device: {device}. Volumes: built-in scenes at {} voxels along the longest axis, highlights off. \
+         GPU time: median (min–max) of {} frames from timestamp queries. Error: against the reference \
+         renderer at {}² ({} rays/voxel², RK4 steps {} voxel light / {} voxel view, {}² rays per pixel), \
+         larger viewports box-filtered to that size. ★ = on the scene's Pareto front.\n",
+        plan.resolution,
+        plan.frames,
+        plan.reference_size,
+        r.photons.rays_per_voxel2,
+        r.photons.step_voxels,
+        r.view_step_voxels,
+        r.samples_per_axis
+    );
+    s.push_str("| scene | setting | Δs | viewport | filter | precision | caustics | gradient | planes | GPU ms | rel. L1 | RMSE | peak Δ px | |\n");
+    s.push_str("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    let front = front_rows(rows);
+    for (row, star) in rows.iter().zip(front) {
+        let t = &row.setting;
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {}² | {} | {} | {} | {} | {} | {:.1} ({:.1}–{:.1}) | {:.4} | {:.4} | {:.1} | {} |",
+            row.scene,
+            t.label,
+            t.sample_distance,
+            t.size,
+            on(t.light_filter),
+            t.precision.name(),
+            on(t.intensity_correction),
+            t.gradient.name(),
+            row.planes,
+            row.ms_median,
+            row.ms_min,
+            row.ms_max,
+            row.error.rel_l1,
+            row.error.rmse,
+            row.error.peak_px,
+            if star { "★" } else { "" }
+        );
+    }
+    std::fs::write(path, s).map_err(|e| e.to_string())
+}
+
+pub fn write_csv(path: &Path, rows: &[Row]) -> Result<(), String> {
+    let mut s = String::from(
+        "scene,setting,sample_distance,viewport,light_filter,precision,intensity_correction,gradient,planes,ms_median,ms_min,ms_max,rel_l1,rmse,peak_px,pareto\n",
+    );
+    let front = front_rows(rows);
+    for (row, star) in rows.iter().zip(front) {
+        let t = &row.setting;
+        let _ = writeln!(
+            s,
+            "{},\"{}\",{},{},{},{},{},{},{},{:.3},{:.3},{:.3},{:.6},{:.6},{:.2},{}",
+            row.scene,
+            t.label,
+            t.sample_distance,
+            t.size,
+            t.light_filter,
+            t.precision.name(),
+            t.intensity_correction,
+            t.gradient.name(),
+            row.planes,
+            row.ms_median,
+            row.ms_min,
+            row.ms_max,
+            row.error.rel_l1,
+            row.error.rmse,
+            row.error.peak_px,
+            star
+        );
+    }
+    std::fs::write(path, s).map_err(|e| e.to_string())
+}
