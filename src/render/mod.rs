@@ -19,6 +19,7 @@ pub use params::{Immediates, Params};
 pub use upload::ETA_TABLE_SIZE;
 
 use std::collections::HashMap;
+use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
 use crate::gpu::shader::ShaderSource;
@@ -41,6 +42,9 @@ pub enum RenderError {
     Environment(#[from] EnvError),
     #[error("cannot render this view: {0}")]
     Setup(String),
+    /// The request's cancel flag was set (an interactive view changed before it finished).
+    #[error("render cancelled")]
+    Cancelled,
 }
 
 /// A scene with its data loaded: volumes, transfer functions, environment image.
@@ -108,6 +112,9 @@ pub struct RenderRequest {
     pub debug_depth: f32,
     /// Show a progress bar on a terminal.
     pub progress: bool,
+    /// Checked between submissions: when set, the render stops with [`RenderError::Cancelled`].
+    /// Renders with a flag are submitted in smaller chunks so they stop sooner.
+    pub cancel: Option<Arc<AtomicBool>>,
 }
 
 impl RenderRequest {
@@ -118,6 +125,7 @@ impl RenderRequest {
             debug_view: DebugView::Image,
             debug_depth: 1.0,
             progress: false,
+            cancel: None,
         }
     }
 }

@@ -22,6 +22,8 @@ use super::{
 /// Planes recorded per submission: keeps each submission short (progress, responsiveness,
 /// watchdogs) while the per-submission overhead stays negligible.
 const PLANES_PER_SUBMIT: u32 = 128;
+/// Planes per submission of a cancellable render: a view change stops it within a few planes.
+const PLANES_PER_SUBMIT_CANCELLABLE: u32 = 8;
 const WORKGROUP: u32 = 8;
 
 /// The six state buffers of Algorithm 1, in binding order; `None` where the scene does not
@@ -232,7 +234,19 @@ pub(super) fn run(
     let mut gpu_ms = 0.0;
     let mut plane = 1u32;
     let mut rec = Some(rec);
+    let chunk = if req.cancel.is_some() {
+        PLANES_PER_SUBMIT_CANCELLABLE
+    } else {
+        PLANES_PER_SUBMIT
+    };
     loop {
+        if req
+            .cancel
+            .as_ref()
+            .is_some_and(|c| c.load(std::sync::atomic::Ordering::Relaxed))
+        {
+            return Err(RenderError::Cancelled);
+        }
         let mut r = match rec.take() {
             Some(r) => r,
             None => Recorder::new(ctx, "render: planes")?,
@@ -240,7 +254,7 @@ pub(super) fn run(
         let ts = Timestamps::new(ctx, 2)?;
         r.reset_timestamps(&ts);
         r.timestamp(&ts, 0);
-        let end = (plane + PLANES_PER_SUBMIT).min(planes_run);
+        let end = (plane + chunk).min(planes_run);
         while plane < end {
             let read = ((plane - 1) % 2) as usize;
             r.dispatch(&pipelines[1], &sets[1][read], bytemuck::bytes_of(&push(plane)), groups);

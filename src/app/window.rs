@@ -1,0 +1,414 @@
+//! The winit window: input into egui, progressive frames from the render thread, painting
+//! (render image + panel) into a softbuffer surface, screenshots and exit-after-idle.
+
+use std::num::NonZeroU32;
+use std::path::PathBuf;
+use std::rc::Rc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Instant;
+
+use anyhow::{anyhow, Result};
+use winit::application::ApplicationHandler;
+use winit::dpi::PhysicalSize;
+use winit::event::WindowEvent;
+use winit::event_loop::{ActiveEventLoop, ControlFlow};
+use winit::window::{Window, WindowId};
+
+use super::panel::{Action, ViewState};
+use super::progressive::{Progressive, FULL, LEVELS};
+use super::raster::{Painter, Target};
+use super::worker::{Reply, Request, Worker};
+use crate::render::{linear_to_srgb, RenderedImage};
+use crate::scene::Scene;
+
+/// Wakes the event loop when the render thread has a reply.
+#[derive(Debug)]
+pub struct Wake;
+
+/// What the window shows of the render: the last accepted frame as `0x00RRGGBB`.
+struct Shown {
+    width: u32,
+    height: u32,
+    pixels: Vec<u32>,
+}
+
+/// The same conversion as `RenderedImage::to_srgb8`, packed for the surface.
+fn pack(image: &RenderedImage) -> Shown {
+    let q = |c: f32| (linear_to_srgb(c) * 255.0 + 0.5) as u32;
+    Shown {
+        width: image.width,
+        height: image.height,
+        pixels: image
+            .pixels
+            .iter()
+            .map(|p| (q(p[0]) << 16) | (q(p[1]) << 8) | q(p[2]))
+            .collect(),
+    }
+}
+
+struct Surface {
+    window: Rc<Window>,
+    surface: softbuffer::Surface<Rc<Window>, Rc<Window>>,
+    egui: egui_winit::State,
+}
+
+pub struct Options {
+    pub size: (u32, u32),
+    pub exit_after_idle: bool,
+    /// Written once the full-quality frame is on screen: what the window shows, read back.
+    pub screenshot: Option<PathBuf>,
+}
+
+pub struct App {
+    pub state: ViewState,
+    opts: Options,
+    worker: Worker,
+    progressive: Progressive,
+    egui: egui::Context,
+    painter: Painter,
+    surface: Option<Surface>,
+    shown: Option<Shown>,
+    /// What the current version looks like, to detect edits.
+    last_scene: Scene,
+    last_render_size: (u32, u32),
+    cancel: Arc<AtomicBool>,
+    /// The viewport has no pixels (minimised): nothing to render, so nothing to wait for.
+    no_viewport: bool,
+    pub error: Option<anyhow::Error>,
+    screenshot_done: bool,
+}
+
+impl App {
+    pub fn new(state: ViewState, worker: Worker, opts: Options) -> App {
+        let last_scene = state.scene_for_render();
+        App {
+            state,
+            opts,
+            worker,
+            progressive: Progressive::new(Instant::now()),
+            egui: egui::Context::default(),
+            painter: Painter::default(),
+            surface: None,
+            shown: None,
+            last_scene,
+            last_render_size: (0, 0),
+            cancel: Arc::new(AtomicBool::new(false)),
+            no_viewport: false,
+            error: None,
+            screenshot_done: false,
+        }
+    }
+
+    /// Stops the render thread (destroying its GPU objects) and closes the window.
+    pub fn shutdown(&mut self) {
+        self.cancel.store(true, Ordering::Relaxed);
+        self.worker.stop();
+        self.surface = None;
+    }
+
+    fn fail(&mut self, event_loop: &ActiveEventLoop, e: anyhow::Error) {
+        self.error.get_or_insert(e);
+        event_loop.exit();
+    }
+
+    fn viewport_pixels(&self, ppp: f32) -> [u32; 4] {
+        let r = self.state.viewport;
+        if !r.is_positive() {
+            return [0; 4];
+        }
+        let x0 = (r.min.x * ppp).round().max(0.0) as u32;
+        let y0 = (r.min.y * ppp).round().max(0.0) as u32;
+        let x1 = (r.max.x * ppp).round().max(0.0) as u32;
+        let y1 = (r.max.y * ppp).round().max(0.0) as u32;
+        [x0, y0, x1.saturating_sub(x0), y1.saturating_sub(y0)]
+    }
+
+    fn take_replies(&mut self) {
+        while let Ok(reply) = self.worker.replies.try_recv() {
+            match reply {
+                Reply::Frame {
+                    job,
+                    image,
+                    stats,
+                    duration_ms,
+                } => {
+                    if self.progressive.finished(job, true) {
+                        self.shown = Some(pack(&image));
+                        let s = &mut self.state.status;
+                        s.level = LEVELS[job.level].name;
+                        s.frame_ms = duration_ms;
+                        s.planes = stats.planes;
+                        s.render_size = (image.width, image.height);
+                    }
+                }
+                Reply::Cancelled { job } => {
+                    self.progressive.finished(job, false);
+                }
+                Reply::Failed { job, message } => {
+                    if let Some(job) = job {
+                        self.progressive.finished(job, false);
+                    }
+                    self.state.status.message = message.clone();
+                    // Without a picture the exit-after-idle run can never settle: stop.
+                    if self.opts.exit_after_idle {
+                        self.error.get_or_insert(anyhow!("render failed: {message}"));
+                    }
+                }
+                Reply::Saved { path, result } => {
+                    self.state.status.message = match result {
+                        Ok(()) => format!("wrote {}", path.display()),
+                        Err(e) => format!("screenshot failed: {e}"),
+                    };
+                }
+            }
+        }
+    }
+
+    fn schedule(&mut self, render_size: (u32, u32)) {
+        let now = Instant::now();
+        let scene = self.state.scene_for_render();
+        if scene != self.last_scene || render_size != self.last_render_size {
+            if scene.validate().is_err() {
+                return;
+            }
+            self.last_scene = scene;
+            self.last_render_size = render_size;
+            if self.progressive.changed(now) {
+                self.cancel.store(true, Ordering::Relaxed);
+            }
+        }
+        self.no_viewport = render_size.0 == 0 || render_size.1 == 0;
+        if self.no_viewport {
+            return;
+        }
+        if let Some(job) = self.progressive.next(now) {
+            let level = LEVELS[job.level];
+            let mut scene = self.last_scene.clone();
+            scene.quality.sample_distance = (scene.quality.sample_distance * level.step_factor).min(16.0);
+            let scale = if job.level == FULL { 1.0 } else { level.scale };
+            let (w, h) = (
+                ((render_size.0 as f32 * scale).round() as u32).max(1),
+                ((render_size.1 as f32 * scale).round() as u32).max(1),
+            );
+            self.cancel = Arc::new(AtomicBool::new(false));
+            self.worker.send(Request::Frame {
+                job,
+                scene: Box::new(scene),
+                width: w,
+                height: h,
+                cancel: self.cancel.clone(),
+            });
+        }
+    }
+
+    fn act(&mut self, event_loop: &ActiveEventLoop, action: Action) {
+        match action {
+            Action::Quit => event_loop.exit(),
+            Action::SaveScene(path) => {
+                self.state.status.message = match super::save::save_scene(&self.state.scene_for_render(), &path) {
+                    Ok(()) => format!("saved {}", path.display()),
+                    Err(e) => format!("cannot save {}: {e:#}", path.display()),
+                };
+            }
+            Action::Screenshot { path, width, height } => {
+                self.state.status.message = format!("rendering {}×{} to {} ...", width, height, path.display());
+                self.worker.send(Request::Screenshot {
+                    scene: Box::new(self.state.scene_for_render()),
+                    width,
+                    height,
+                    path,
+                });
+            }
+        }
+    }
+
+    fn redraw(&mut self, event_loop: &ActiveEventLoop) {
+        self.take_replies();
+        let Some(s) = self.surface.as_mut() else { return };
+        let input = s.egui.take_egui_input(&s.window);
+        let state = &mut self.state;
+        let mut actions = Vec::new();
+        let output = self.egui.run_ui(input, |ui| actions = state.ui(ui));
+        s.egui.handle_platform_output(&s.window, output.platform_output);
+        let ppp = output.pixels_per_point;
+        let size = s.window.inner_size();
+        for a in actions {
+            self.act(event_loop, a);
+        }
+        let vp = self.viewport_pixels(ppp);
+        let scale = self.state.render_scale.clamp(0.05, 1.0);
+        let render_size = (
+            ((vp[2] as f32) * scale).round() as u32,
+            ((vp[3] as f32) * scale).round() as u32,
+        );
+        self.schedule(render_size);
+
+        self.painter.update_textures(&output.textures_delta);
+        let primitives = self.egui.tessellate(output.shapes, ppp);
+        let (Some(w), Some(h)) = (NonZeroU32::new(size.width), NonZeroU32::new(size.height)) else {
+            // Minimised: nothing to paint.
+            self.painter.free_textures(&output.textures_delta);
+            return;
+        };
+        let Some(s) = self.surface.as_mut() else { return };
+        let result = (|| -> Result<(), softbuffer::SoftBufferError> {
+            s.surface.resize(w, h)?;
+            let mut buffer = s.surface.buffer_mut()?;
+            let (bw, bh) = (size.width as usize, size.height as usize);
+            buffer.fill(0x00_10_10_10);
+            if let Some(img) = &self.shown {
+                blit(&mut buffer, bw, bh, img, vp);
+            }
+            let mut target = Target {
+                pixels: &mut buffer,
+                width: bw,
+                height: bh,
+            };
+            self.painter.paint(&mut target, &primitives, ppp);
+            buffer.present()
+        })();
+        self.painter.free_textures(&output.textures_delta);
+        if let Err(e) = result {
+            self.fail(event_loop, anyhow!("cannot present the window: {e}"));
+            return;
+        }
+        if self.progressive.settled() && !self.screenshot_done {
+            self.screenshot_done = true;
+            if let Some(path) = self.opts.screenshot.clone() {
+                if let Err(e) = self.capture(&path, vp) {
+                    self.fail(event_loop, e);
+                    return;
+                }
+            }
+            if self.opts.exit_after_idle {
+                event_loop.exit();
+            }
+        }
+        if self.error.is_some() {
+            event_loop.exit();
+        }
+        let repaint = output
+            .viewport_output
+            .get(&egui::ViewportId::ROOT)
+            .map(|v| v.repaint_delay);
+        if let Some(s) = &self.surface {
+            if repaint.is_some_and(|d| d.is_zero()) {
+                s.window.request_redraw();
+            }
+        }
+    }
+
+    /// Reads back what the window shows (the X server's copy of the surface) inside the
+    /// viewport and writes it as a PNG.
+    fn capture(&mut self, path: &std::path::Path, vp: [u32; 4]) -> Result<()> {
+        let s = self.surface.as_mut().ok_or_else(|| anyhow!("no window"))?;
+        let size = s.window.inner_size();
+        let pixels = s
+            .surface
+            .fetch()
+            .map_err(|e| anyhow!("cannot read back the window contents: {e}"))?;
+        let (ww, wh) = (size.width as usize, size.height as usize);
+        if pixels.len() != ww * wh || vp[2] == 0 || vp[3] == 0 {
+            return Err(anyhow!(
+                "window read-back has {} pixels, expected {ww}×{wh}",
+                pixels.len()
+            ));
+        }
+        let mut rgb = Vec::with_capacity((vp[2] * vp[3] * 3) as usize);
+        for y in vp[1]..vp[1] + vp[3] {
+            for x in vp[0]..vp[0] + vp[2] {
+                let p = pixels[y as usize * ww + x as usize];
+                rgb.extend_from_slice(&[(p >> 16) as u8, (p >> 8) as u8, p as u8]);
+            }
+        }
+        let img = image::RgbImage::from_raw(vp[2], vp[3], rgb).ok_or_else(|| anyhow!("bad capture size"))?;
+        let tmp = path.with_extension("capture.tmp.png");
+        img.save(&tmp)?;
+        std::fs::rename(&tmp, path)?;
+        eprintln!("wrote {} ({}×{}, window capture)", path.display(), vp[2], vp[3]);
+        Ok(())
+    }
+}
+
+/// Scales `img` (nearest texel) into the viewport `vp` = [x, y, w, h] of the buffer.
+fn blit(buffer: &mut [u32], bw: usize, bh: usize, img: &Shown, vp: [u32; 4]) {
+    let [x0, y0, w, h] = vp.map(|v| v as usize);
+    if w == 0 || h == 0 || img.width == 0 || img.height == 0 {
+        return;
+    }
+    let (iw, ih) = (img.width as usize, img.height as usize);
+    for y in y0..(y0 + h).min(bh) {
+        let sy = ((y - y0) * ih / h).min(ih - 1);
+        let src = &img.pixels[sy * iw..(sy + 1) * iw];
+        let row = &mut buffer[y * bw..(y + 1) * bw];
+        for x in x0..(x0 + w).min(bw) {
+            row[x] = src[((x - x0) * iw / w).min(iw - 1)];
+        }
+    }
+}
+
+impl ApplicationHandler<Wake> for App {
+    fn resumed(&mut self, event_loop: &ActiveEventLoop) {
+        if self.surface.is_some() {
+            return;
+        }
+        let attrs = Window::default_attributes()
+            .with_title("caustica")
+            .with_inner_size(PhysicalSize::new(self.opts.size.0, self.opts.size.1));
+        let result = (|| -> Result<Surface> {
+            let window = Rc::new(event_loop.create_window(attrs)?);
+            let context = softbuffer::Context::new(window.clone()).map_err(|e| anyhow!("{e}"))?;
+            let surface = softbuffer::Surface::new(&context, window.clone()).map_err(|e| anyhow!("{e}"))?;
+            let egui = egui_winit::State::new(
+                self.egui.clone(),
+                egui::ViewportId::ROOT,
+                &window,
+                Some(window.scale_factor() as f32),
+                None,
+                None,
+            );
+            Ok(Surface { window, surface, egui })
+        })();
+        match result {
+            Ok(s) => {
+                s.window.request_redraw();
+                self.surface = Some(s);
+            }
+            Err(e) => self.fail(event_loop, e.context("cannot open the window")),
+        }
+    }
+
+    fn window_event(&mut self, event_loop: &ActiveEventLoop, _id: WindowId, event: WindowEvent) {
+        let Some(s) = self.surface.as_mut() else { return };
+        let response = s.egui.on_window_event(&s.window, &event);
+        match event {
+            WindowEvent::CloseRequested | WindowEvent::Destroyed => event_loop.exit(),
+            WindowEvent::RedrawRequested => self.redraw(event_loop),
+            _ => {
+                if response.repaint {
+                    s.window.request_redraw();
+                }
+            }
+        }
+    }
+
+    fn user_event(&mut self, _event_loop: &ActiveEventLoop, _event: Wake) {
+        if let Some(s) = &self.surface {
+            s.window.request_redraw();
+        }
+    }
+
+    fn about_to_wait(&mut self, event_loop: &ActiveEventLoop) {
+        match self.progressive.wake_at().filter(|_| !self.no_viewport) {
+            Some(t) if t <= Instant::now() => {
+                if let Some(s) = &self.surface {
+                    s.window.request_redraw();
+                }
+                event_loop.set_control_flow(ControlFlow::Wait);
+            }
+            Some(t) => event_loop.set_control_flow(ControlFlow::WaitUntil(t)),
+            None => event_loop.set_control_flow(ControlFlow::Wait),
+        }
+    }
+}
