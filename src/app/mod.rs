@@ -16,6 +16,8 @@ pub mod save;
 pub mod tf_model;
 mod widgets;
 mod window;
+#[cfg(test)]
+mod panel_tests;
 mod worker;
 
 use std::path::{Path, PathBuf};
@@ -57,6 +59,9 @@ pub struct ViewArgs {
     /// (read back from the window system) to this PNG.
     #[arg(long)]
     pub screenshot: Option<PathBuf>,
+    /// Once the full-quality frame is on screen, save the scene (as Ctrl+S does) to this TOML.
+    #[arg(long)]
+    pub save_scene: Option<PathBuf>,
 }
 
 fn parse_size(s: &str) -> Result<(u32, u32), String> {
@@ -130,6 +135,7 @@ pub fn run(args: &ViewArgs) -> Result<()> {
         size: args.size,
         exit_after_idle: args.exit_after_idle,
         screenshot: args.screenshot.clone(),
+        save_scene: args.save_scene.clone(),
     };
     let mut app = window::App::new(state, worker, opts);
     let result = event_loop.run_app(&mut app);

@@ -62,21 +62,31 @@ fn interact(
         }
         return changed;
     }
-    if response.drag_started_by(egui::PointerButton::Primary) || response.clicked() {
-        if let Some(p) = pos {
-            let i = match pick(tf, f, p, &place) {
+    if response.drag_started_by(egui::PointerButton::Primary) {
+        // The drag is recognised only after the pointer moved a little: pick at the press.
+        if let Some(origin) = response.ctx.input(|i| i.pointer.press_origin()).or(pos) {
+            let i = match pick(tf, f, origin, &place) {
                 Some(i) => {
                     tf.begin_edit();
                     i
                 }
                 None => {
-                    let (x, v) = insert_at(p);
+                    let (x, v) = insert_at(origin);
                     changed = true;
                     tf.insert(f, x, v)
                 }
             };
             sel.selected = Some((f, i));
-            sel.dragging = response.drag_started().then_some((f, i));
+            sel.dragging = Some((f, i));
+        }
+    } else if response.clicked() {
+        if let Some(p) = pos {
+            let i = pick(tf, f, p, &place).unwrap_or_else(|| {
+                let (x, v) = insert_at(p);
+                changed = true;
+                tf.insert(f, x, v)
+            });
+            sel.selected = Some((f, i));
         }
     }
     if let (Some((df, i)), true, Some(p)) = (sel.dragging, response.dragged(), pos) {

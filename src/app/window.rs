@@ -58,6 +58,8 @@ pub struct Options {
     pub exit_after_idle: bool,
     /// Written once the full-quality frame is on screen: what the window shows, read back.
     pub screenshot: Option<PathBuf>,
+    /// Saved once the full-quality frame is on screen.
+    pub save_scene: Option<PathBuf>,
 }
 
 pub struct App {
@@ -280,6 +282,14 @@ impl App {
                     self.fail(event_loop, e);
                     return;
                 }
+            }
+            if let Some(path) = self.opts.save_scene.clone() {
+                // The scene of the frame on screen, not of edits made since.
+                if let Err(e) = super::save::save_scene(&self.last_scene, &path) {
+                    self.fail(event_loop, e);
+                    return;
+                }
+                eprintln!("wrote {}", path.display());
             }
             if self.opts.exit_after_idle {
                 event_loop.exit();
