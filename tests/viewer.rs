@@ -15,7 +15,11 @@ struct Xvfb {
 
 impl Xvfb {
     fn start() -> Xvfb {
-        let found = Command::new("Xvfb").arg("-help").stderr(Stdio::null()).stdout(Stdio::null()).status();
+        let found = Command::new("Xvfb")
+            .arg("-help")
+            .stderr(Stdio::null())
+            .stdout(Stdio::null())
+            .status();
         assert!(
             found.is_ok(),
             "the viewer tests need Xvfb (a virtual X server): run `.ci/ensure-vulkan --test` \
@@ -29,7 +33,14 @@ impl Xvfb {
                 continue;
             }
             let child = Command::new("Xvfb")
-                .args([format!(":{n}").as_str(), "-screen", "0", "640x480x24", "-nolisten", "tcp"])
+                .args([
+                    format!(":{n}").as_str(),
+                    "-screen",
+                    "0",
+                    "640x480x24",
+                    "-nolisten",
+                    "tcp",
+                ])
                 .stdout(Stdio::null())
                 .stderr(Stdio::null())
                 .spawn()
@@ -103,12 +114,17 @@ fn assert_ok(out: &Output, what: &str) -> String {
     assert!(out.status.success(), "{what} failed ({}):\n{stderr}", out.status);
     // The validation layer reports objects still alive at vkDestroyDevice as errors, so this
     // also checks that the window and render thread shut down cleanly.
-    assert!(!stderr.contains("validation error"), "{what}: validation errors:\n{stderr}");
+    assert!(
+        !stderr.contains("validation error"),
+        "{what}: validation errors:\n{stderr}"
+    );
     stderr
 }
 
 fn rgb(path: &Path) -> (u32, u32, Vec<u8>) {
-    let img = image::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display())).to_rgb8();
+    let img = image::open(path)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+        .to_rgb8();
     (img.width(), img.height(), img.into_raw())
 }
 
@@ -187,15 +203,28 @@ fn window_shows_the_offscreen_render_and_saved_scene_reproduces_it() {
     drop(x);
     let limit = Duration::from_secs(60);
     let render = |input: &Path, output: &Path, extra: &[&str]| {
-        let mut args = vec!["render".to_string(), s(input), "--size".into(), "96x80".into(), "-o".into(), s(output)];
+        let mut args = vec![
+            "render".to_string(),
+            s(input),
+            "--size".into(),
+            "96x80".into(),
+            "-o".into(),
+            s(output),
+        ];
         args.extend(extra.iter().map(|a| a.to_string()));
         let args: Vec<&str> = args.iter().map(|a| a.as_str()).collect();
         assert_ok(&caustica(&args, None, limit), "caustica render");
     };
     render(&scene, &reference, &[]);
     render(&saved, &from_saved, &[]);
-    assert!(same_image(&capture, &reference), "the window differs from `caustica render`");
-    assert!(same_image(&from_saved, &capture), "the saved scene renders differently from the window");
+    assert!(
+        same_image(&capture, &reference),
+        "the window differs from `caustica render`"
+    );
+    assert!(
+        same_image(&from_saved, &capture),
+        "the saved scene renders differently from the window"
+    );
 
     // The comparison can fail: the preview level (twice the sample distance) is a different
     // image, and so is the window capture against it.
@@ -207,7 +236,14 @@ fn window_shows_the_offscreen_render_and_saved_scene_reproduces_it() {
 #[test]
 fn without_a_display_the_viewer_fails_with_a_clear_message() {
     let out = caustica(
-        &["view", "--scene", "ball-lens", "--resolution", "32", "--exit-after-idle"],
+        &[
+            "view",
+            "--scene",
+            "ball-lens",
+            "--resolution",
+            "32",
+            "--exit-after-idle",
+        ],
         None,
         Duration::from_secs(60),
     );

@@ -10,14 +10,14 @@
 
 pub mod controls;
 pub mod panel;
+#[cfg(test)]
+mod panel_tests;
 pub mod progressive;
 pub mod raster;
 pub mod save;
 pub mod tf_model;
 mod widgets;
 mod window;
-#[cfg(test)]
-mod panel_tests;
 mod worker;
 
 use std::path::{Path, PathBuf};
@@ -55,13 +55,16 @@ pub struct ViewArgs {
     /// Quit once the full-quality frame is on screen.
     #[arg(long)]
     pub exit_after_idle: bool,
-    /// Once the full-quality frame is on screen, write what the window shows of the render
-    /// (read back from the window system) to this PNG.
+    /// Once the full-quality frame is on screen, write what the window shows (read back from
+    /// the window system, panel included) to this PNG.
     #[arg(long)]
     pub screenshot: Option<PathBuf>,
     /// Once the full-quality frame is on screen, save the scene (as Ctrl+S does) to this TOML.
     #[arg(long)]
     pub save_scene: Option<PathBuf>,
+    /// Print each frame shown (quality level, size, planes, render time) and paint times.
+    #[arg(long)]
+    pub frame_log: bool,
 }
 
 fn parse_size(s: &str) -> Result<(u32, u32), String> {
@@ -136,6 +139,7 @@ pub fn run(args: &ViewArgs) -> Result<()> {
         exit_after_idle: args.exit_after_idle,
         screenshot: args.screenshot.clone(),
         save_scene: args.save_scene.clone(),
+        frame_log: args.frame_log,
     };
     let mut app = window::App::new(state, worker, opts);
     let result = event_loop.run_app(&mut app);

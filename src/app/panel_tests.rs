@@ -43,7 +43,10 @@ impl Harness {
         let state = &mut self.state;
         let mut actions = Vec::new();
         let out = self.ctx.run_ui(input, |ui| actions.extend(state.ui(ui)));
-        assert!(!self.state.show_panel || !out.shapes.is_empty(), "the panel paints something");
+        assert!(
+            !self.state.show_panel || !out.shapes.is_empty(),
+            "the panel paints something"
+        );
         actions
     }
 
@@ -64,7 +67,10 @@ impl Harness {
     }
 
     fn drag(&mut self, from: Pos2, to: Pos2) {
-        self.frame(vec![Event::PointerMoved(from), Self::button(from, PointerButton::Primary, true)]);
+        self.frame(vec![
+            Event::PointerMoved(from),
+            Self::button(from, PointerButton::Primary, true),
+        ]);
         for k in 1..=4 {
             self.frame(vec![Event::PointerMoved(from + (to - from) * (k as f32 / 4.0))]);
         }
@@ -83,7 +89,11 @@ impl Harness {
     }
 
     fn rect(&self, name: &str) -> Rect {
-        *self.state.rects.get(name).unwrap_or_else(|| panic!("no widget '{name}' was laid out"))
+        *self
+            .state
+            .rects
+            .get(name)
+            .unwrap_or_else(|| panic!("no widget '{name}' was laid out"))
     }
 }
 
@@ -95,7 +105,10 @@ fn viewport_is_beside_the_panel_and_fills_the_window_without_it() {
     h.key(Key::Tab, Modifiers::NONE);
     h.frame(vec![]);
     assert!(!h.state.show_panel);
-    assert_eq!(h.state.viewport, Rect::from_min_size(Pos2::ZERO, Vec2::new(1024.0, 768.0)));
+    assert_eq!(
+        h.state.viewport,
+        Rect::from_min_size(Pos2::ZERO, Vec2::new(1024.0, 768.0))
+    );
 }
 
 #[test]
@@ -112,7 +125,10 @@ fn clicking_the_opacity_curve_adds_a_point_and_undo_removes_it() {
     assert_eq!(f, Function::Opacity);
     let p = h.state.tf.point(f, i).unwrap();
     assert!((p[0] - 0.37).abs() < 0.02 && (p[1] - 0.9).abs() < 0.03, "{p:?}");
-    assert!(h.state.scene_for_render() != h.state.scene, "the edit reaches the rendered scene");
+    assert!(
+        h.state.scene_for_render() != h.state.scene,
+        "the edit reaches the rendered scene"
+    );
 
     // Drag the point down to the bottom: one undo step for the whole drag.
     let at = Pos2::new(r.left() + p[0] * r.width(), r.top() + (1.0 - p[1]) * r.height());
@@ -140,7 +156,10 @@ fn colour_ramp_click_inserts_without_changing_the_gradient() {
     let r = h.rect("medium colour");
     let n = h.state.tf.len(Function::Medium);
     let before = h.state.tf.eval(Function::Medium, 0.62);
-    h.click(Pos2::new(r.left() + 0.62 * r.width(), r.center().y), PointerButton::Primary);
+    h.click(
+        Pos2::new(r.left() + 0.62 * r.width(), r.center().y),
+        PointerButton::Primary,
+    );
     assert_eq!(h.state.tf.len(Function::Medium), n + 1);
     let after = h.state.tf.eval(Function::Medium, 0.62);
     for k in 0..3 {
@@ -155,7 +174,10 @@ fn viewport_drag_orbits_and_wheel_zooms() {
     let vp = h.state.viewport;
     h.drag(vp.center(), vp.center() + Vec2::new(50.0, 20.0));
     let c1 = h.state.scene.camera.clone();
-    assert!((c1.yaw_deg - (c0.yaw_deg - 50.0 * 0.4).rem_euclid(360.0)).abs() < 1e-3, "{c1:?}");
+    assert!(
+        (c1.yaw_deg - (c0.yaw_deg - 50.0 * 0.4).rem_euclid(360.0)).abs() < 1e-3,
+        "{c1:?}"
+    );
     assert!((c1.pitch_deg - (c0.pitch_deg + 8.0)).abs() < 1e-3);
     h.frame(vec![
         Event::PointerMoved(vp.center()),
@@ -178,12 +200,31 @@ fn viewport_drag_orbits_and_wheel_zooms() {
 fn checkbox_screenshot_and_save_shortcuts() {
     let mut h = Harness::with_screen(Vec2::new(1024.0, 2000.0));
     let on = h.state.scene.quality.intensity_correction;
-    h.click(h.rect("caustic correction").left_center() + Vec2::new(8.0, 0.0), PointerButton::Primary);
+    h.click(
+        h.rect("caustic correction").left_center() + Vec2::new(8.0, 0.0),
+        PointerButton::Primary,
+    );
     assert_eq!(h.state.scene.quality.intensity_correction, !on);
     let a = h.click(h.rect("screenshot").center(), PointerButton::Primary);
-    assert!(matches!(a.as_slice(), [Action::Screenshot { width: 1024, height: 768, .. }]), "{a:?}");
-    assert!(matches!(h.key(Key::P, Modifiers::NONE).as_slice(), [Action::Screenshot { .. }]));
-    assert!(matches!(h.key(Key::S, Modifiers::COMMAND).as_slice(), [Action::SaveScene(_)]));
+    assert!(
+        matches!(
+            a.as_slice(),
+            [Action::Screenshot {
+                width: 1024,
+                height: 768,
+                ..
+            }]
+        ),
+        "{a:?}"
+    );
+    assert!(matches!(
+        h.key(Key::P, Modifiers::NONE).as_slice(),
+        [Action::Screenshot { .. }]
+    ));
+    assert!(matches!(
+        h.key(Key::S, Modifiers::COMMAND).as_slice(),
+        [Action::SaveScene(_)]
+    ));
     h.key(Key::F1, Modifiers::NONE);
     assert!(h.state.show_help);
     assert_eq!(h.key(Key::Escape, Modifiers::NONE), vec![Action::Quit]);

@@ -60,6 +60,8 @@ pub struct Options {
     pub screenshot: Option<PathBuf>,
     /// Saved once the full-quality frame is on screen.
     pub save_scene: Option<PathBuf>,
+    /// Print every frame shown (level, size, planes, render time) and the paint time.
+    pub frame_log: bool,
 }
 
 pub struct App {
@@ -137,6 +139,12 @@ impl App {
                 } => {
                     if self.progressive.finished(job, true) {
                         self.shown = Some(pack(&image));
+                        if self.opts.frame_log {
+                            eprintln!(
+                                "frame: {:<11} {}x{} {:>4} planes {:>9.1} ms",
+                                LEVELS[job.level].name, image.width, image.height, stats.planes, duration_ms
+                            );
+                        }
                         let s = &mut self.state.status;
                         s.level = LEVELS[job.level].name;
                         s.frame_ms = duration_ms;
@@ -226,6 +234,7 @@ impl App {
     }
 
     fn redraw(&mut self, event_loop: &ActiveEventLoop) {
+        let start = Instant::now();
         self.take_replies();
         let Some(s) = self.surface.as_mut() else { return };
         let input = s.egui.take_egui_input(&s.window);
@@ -275,10 +284,17 @@ impl App {
             self.fail(event_loop, anyhow!("cannot present the window: {e}"));
             return;
         }
+        if self.opts.frame_log {
+            let ms = start.elapsed().as_secs_f64() * 1e3;
+            eprintln!(
+                "paint: {}x{} window, panel and image {ms:.1} ms",
+                size.width, size.height
+            );
+        }
         if self.progressive.settled() && !self.screenshot_done {
             self.screenshot_done = true;
             if let Some(path) = self.opts.screenshot.clone() {
-                if let Err(e) = self.capture(&path, vp) {
+                if let Err(e) = self.capture(&path) {
                     self.fail(event_loop, e);
                     return;
                 }
@@ -309,9 +325,9 @@ impl App {
         }
     }
 
-    /// Reads back what the window shows (the X server's copy of the surface) inside the
-    /// viewport and writes it as a PNG.
-    fn capture(&mut self, path: &std::path::Path, vp: [u32; 4]) -> Result<()> {
+    /// Reads back what the window shows (the X server's copy of the surface, panel included)
+    /// and writes it as a PNG.
+    fn capture(&mut self, path: &std::path::Path) -> Result<()> {
         let s = self.surface.as_mut().ok_or_else(|| anyhow!("no window"))?;
         let size = s.window.inner_size();
         let pixels = s
@@ -319,41 +335,60 @@ impl App {
             .fetch()
             .map_err(|e| anyhow!("cannot read back the window contents: {e}"))?;
         let (ww, wh) = (size.width as usize, size.height as usize);
-        if pixels.len() != ww * wh || vp[2] == 0 || vp[3] == 0 {
+        if pixels.len() != ww * wh {
             return Err(anyhow!(
                 "window read-back has {} pixels, expected {ww}×{wh}",
                 pixels.len()
             ));
         }
-        let mut rgb = Vec::with_capacity((vp[2] * vp[3] * 3) as usize);
-        for y in vp[1]..vp[1] + vp[3] {
-            for x in vp[0]..vp[0] + vp[2] {
-                let p = pixels[y as usize * ww + x as usize];
-                rgb.extend_from_slice(&[(p >> 16) as u8, (p >> 8) as u8, p as u8]);
-            }
-        }
-        let img = image::RgbImage::from_raw(vp[2], vp[3], rgb).ok_or_else(|| anyhow!("bad capture size"))?;
+        let rgb: Vec<u8> = pixels
+            .iter()
+            .flat_map(|p| [(p >> 16) as u8, (p >> 8) as u8, *p as u8])
+            .collect();
+        let img = image::RgbImage::from_raw(size.width, size.height, rgb).ok_or_else(|| anyhow!("bad capture size"))?;
         let tmp = path.with_extension("capture.tmp.png");
         img.save(&tmp)?;
         std::fs::rename(&tmp, path)?;
-        eprintln!("wrote {} ({}×{}, window capture)", path.display(), vp[2], vp[3]);
+        eprintln!("wrote {} ({ww}×{wh}, window capture)", path.display());
         Ok(())
     }
 }
 
-/// Scales `img` (nearest texel) into the viewport `vp` = [x, y, w, h] of the buffer.
+/// Copies `img` into the viewport `vp` = [x, y, w, h] of the buffer: 1:1 when the sizes
+/// match (the full-quality frame, pixel for pixel), else bilinearly scaled (coarse levels).
 fn blit(buffer: &mut [u32], bw: usize, bh: usize, img: &Shown, vp: [u32; 4]) {
     let [x0, y0, w, h] = vp.map(|v| v as usize);
     if w == 0 || h == 0 || img.width == 0 || img.height == 0 {
         return;
     }
     let (iw, ih) = (img.width as usize, img.height as usize);
-    for y in y0..(y0 + h).min(bh) {
-        let sy = ((y - y0) * ih / h).min(ih - 1);
-        let src = &img.pixels[sy * iw..(sy + 1) * iw];
-        let row = &mut buffer[y * bw..(y + 1) * bw];
-        for x in x0..(x0 + w).min(bw) {
-            row[x] = src[((x - x0) * iw / w).min(iw - 1)];
+    let (x1, y1) = ((x0 + w).min(bw), (y0 + h).min(bh));
+    if (iw, ih) == (w, h) {
+        for y in y0..y1 {
+            let src = &img.pixels[(y - y0) * iw..(y - y0) * iw + (x1 - x0)];
+            buffer[y * bw + x0..y * bw + x1].copy_from_slice(src);
+        }
+        return;
+    }
+    // Texel centres: pixel centre (x + 0.5) maps to (x + 0.5) * iw / w - 0.5 in the image.
+    let coord = |p: usize, n_out: usize, n_in: usize| {
+        let f = ((p as f32 + 0.5) * n_in as f32 / n_out as f32 - 0.5).clamp(0.0, (n_in - 1) as f32);
+        let i = (f as usize).min(n_in.saturating_sub(2));
+        (i, (i + 1).min(n_in - 1), f - i as f32)
+    };
+    let xs: Vec<_> = (x0..x1).map(|x| coord(x - x0, w, iw)).collect();
+    let ch = |p: u32, k: u32| ((p >> k) & 255) as f32;
+    for y in y0..y1 {
+        let (ya, yb, ty) = coord(y - y0, h, ih);
+        let (ra, rb) = (&img.pixels[ya * iw..(ya + 1) * iw], &img.pixels[yb * iw..(yb + 1) * iw]);
+        for (x, &(xa, xb, tx)) in (x0..x1).zip(&xs) {
+            let mut out = 0u32;
+            for k in [16, 8, 0] {
+                let top = ch(ra[xa], k) * (1.0 - tx) + ch(ra[xb], k) * tx;
+                let bottom = ch(rb[xa], k) * (1.0 - tx) + ch(rb[xb], k) * tx;
+                out |= ((top * (1.0 - ty) + bottom * ty + 0.5) as u32).min(255) << k;
+            }
+            buffer[y * bw + x] = out;
         }
     }
 }
@@ -420,5 +455,27 @@ impl ApplicationHandler<Wake> for App {
             Some(t) => event_loop.set_control_flow(ControlFlow::WaitUntil(t)),
             None => event_loop.set_control_flow(ControlFlow::Wait),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn blit_copies_exactly_at_full_size_and_interpolates_when_scaled() {
+        let img = Shown {
+            width: 2,
+            height: 1,
+            pixels: vec![0x00_00_00_00, 0x00_FF_FF_FF],
+        };
+        let mut buf = vec![7u32; 4 * 3];
+        blit(&mut buf, 4, 3, &img, [1, 1, 2, 1]);
+        assert_eq!(buf, vec![7, 7, 7, 7, 7, 0, 0xFF_FF_FF, 7, 7, 7, 7, 7]);
+        let mut buf = vec![7u32; 4];
+        blit(&mut buf, 4, 1, &img, [0, 0, 4, 1]);
+        // Pixel centres 0.5..3.5 map to image x -0.25, 0.25, 0.75, 1.25 (clamped to [0, 1]).
+        let grey = |v: u32| (v << 16) | (v << 8) | v;
+        assert_eq!(buf, vec![0, grey(64), grey(191), grey(255)]);
     }
 }
