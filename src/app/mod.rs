@@ -65,6 +65,10 @@ pub struct ViewArgs {
     /// Print each frame shown (quality level, size, planes, render time) and paint times.
     #[arg(long)]
     pub frame_log: bool,
+    /// Scripted interaction for measurements: after each of the first N frames, orbit the
+    /// camera by 5° as a mouse drag would (each frame is then an interactive one).
+    #[arg(long, default_value_t = 0)]
+    pub orbit_frames: u32,
 }
 
 fn parse_size(s: &str) -> Result<(u32, u32), String> {
@@ -140,6 +144,7 @@ pub fn run(args: &ViewArgs) -> Result<()> {
         screenshot: args.screenshot.clone(),
         save_scene: args.save_scene.clone(),
         frame_log: args.frame_log,
+        orbit_frames: args.orbit_frames,
     };
     let mut app = window::App::new(state, worker, opts);
     let result = event_loop.run_app(&mut app);

@@ -105,6 +105,7 @@ impl ViewState {
             egui::Panel::left("caustica panel")
                 .resizable(true)
                 .default_size(320.0)
+                .size_range(240.0..=380.0)
                 .show(ui, |ui| {
                     egui::ScrollArea::vertical().show(ui, |ui| self.panel(ui, &mut actions));
                 });
@@ -424,7 +425,7 @@ impl ViewState {
     fn clip_ui(&mut self, ui: &mut Ui) {
         let mut on = self.scene.clip.is_some();
         if ui.checkbox(&mut on, "clip").changed() {
-            self.scene.clip = on.then(|| ClipPlane {
+            self.scene.clip = on.then_some(ClipPlane {
                 normal: [0.0, 0.0, 1.0],
                 offset: 0.0,
             });

@@ -62,6 +62,8 @@ pub struct Options {
     pub save_scene: Option<PathBuf>,
     /// Print every frame shown (level, size, planes, render time) and the paint time.
     pub frame_log: bool,
+    /// Scripted interaction: after each of the first N frames, orbit by 5° as a drag would.
+    pub orbit_frames: u32,
 }
 
 pub struct App {
@@ -145,6 +147,11 @@ impl App {
                                 LEVELS[job.level].name, image.width, image.height, stats.planes, duration_ms
                             );
                         }
+                        if self.opts.orbit_frames > 0 {
+                            self.opts.orbit_frames -= 1;
+                            let step_px = 5.0 / super::controls::ORBIT_DEG_PER_PIXEL;
+                            super::controls::orbit(&mut self.state.scene.camera, step_px, 0.0);
+                        }
                         let s = &mut self.state.status;
                         s.level = LEVELS[job.level].name;
                         s.frame_ms = duration_ms;
@@ -179,7 +186,8 @@ impl App {
         let now = Instant::now();
         let scene = self.state.scene_for_render();
         if scene != self.last_scene || render_size != self.last_render_size {
-            if scene.validate().is_err() {
+            if let Err(e) = scene.validate() {
+                self.state.status.message = e.to_string();
                 return;
             }
             self.last_scene = scene;

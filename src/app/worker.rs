@@ -186,3 +186,86 @@ fn handle(renderer: &mut Renderer, prepared: &mut PreparedScene, request: Reques
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gpu::{Context, ContextDesc, DeviceSelector};
+    use crate::scene::{builtin, VolumeSource};
+    use std::time::Duration;
+
+    fn small_scene() -> Scene {
+        let mut scene = builtin("ball-lens").unwrap().scene;
+        scene.volume = VolumeSource::Builtin {
+            name: "ball-lens".into(),
+            resolution: 32,
+        };
+        scene
+    }
+
+    /// The screenshot path renders offscreen at the requested size with the same renderer,
+    /// PNG and EXR; a frame whose cancel flag is already set is answered as cancelled.
+    #[test]
+    fn screenshots_match_a_direct_render_and_cancel_is_honoured() {
+        let ctx = Context::new(&ContextDesc::from_env(DeviceSelector::Auto)).expect("Vulkan device");
+        let scene = small_scene();
+        let prepared = PreparedScene::load(&scene).unwrap();
+        let mut direct = Renderer::new(ctx.clone()).unwrap();
+        let expected = direct.render(&prepared, &RenderRequest::new(40, 30)).unwrap().image;
+        drop(direct);
+
+        let worker_prepared = PreparedScene::load(&scene).unwrap();
+        let mut worker = Worker::start(Renderer::new(ctx.clone()).unwrap(), worker_prepared, || {});
+        let dir = std::env::temp_dir().join(format!("caustica-worker-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let cancelled = Job { version: 7, level: 2 };
+        worker.send(Request::Frame {
+            job: cancelled,
+            scene: Box::new(scene.clone()),
+            width: 40,
+            height: 30,
+            cancel: Arc::new(AtomicBool::new(true)),
+        });
+        for ext in ["png", "exr"] {
+            worker.send(Request::Screenshot {
+                scene: Box::new(scene.clone()),
+                width: 40,
+                height: 30,
+                path: dir.join(format!("shot.{ext}")),
+            });
+        }
+        let (mut saved, mut was_cancelled) = (0, false);
+        while saved < 2 || !was_cancelled {
+            match worker.replies.recv_timeout(Duration::from_secs(120)).expect("a reply") {
+                Reply::Saved { result, .. } => {
+                    result.unwrap();
+                    saved += 1;
+                }
+                Reply::Cancelled { job } => was_cancelled = job == cancelled,
+                Reply::Frame { .. } => panic!("a cancelled frame was rendered"),
+                Reply::Failed { message, .. } => panic!("{message}"),
+            }
+        }
+        worker.stop();
+        assert!(was_cancelled);
+        let png = image::open(dir.join("shot.png")).unwrap().to_rgba8();
+        assert_eq!((png.width(), png.height()), (40, 30));
+        assert_eq!(
+            png.into_raw(),
+            expected.to_srgb8(),
+            "PNG = the direct render, byte for byte"
+        );
+        let exr = exr::prelude::read_first_rgba_layer_from_file(
+            dir.join("shot.exr"),
+            |res, _| vec![[0f32; 4]; res.width() * res.height()],
+            |px: &mut Vec<[f32; 4]>, pos, (r, g, b, a): (f32, f32, f32, f32)| px[pos.y() * 40 + pos.x()] = [r, g, b, a],
+        )
+        .unwrap();
+        assert_eq!(
+            exr.layer_data.channel_data.pixels, expected.pixels,
+            "EXR keeps the linear floats"
+        );
+        assert_eq!(ctx.validation_errors(), 0, "{:?}", ctx.validation_messages());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
