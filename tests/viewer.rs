@@ -3,6 +3,7 @@
 //! `caustica render` of the same scene and size; the saved scene renders the same image; no
 //! validation error (leaks at device destruction included) is reported.
 
+use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
@@ -25,43 +26,28 @@ impl Xvfb {
             "the viewer tests need Xvfb (a virtual X server): run `.ci/ensure-vulkan --test` \
              or `apt-get install xvfb libxkbcommon-x11-0 libx11-xcb1`"
         );
-        // Displays from a range unlikely to be in use; skip ones whose socket exists.
-        let base = 70 + std::process::id() % 200;
-        for n in base..base + 50 {
-            let socket = PathBuf::from(format!("/tmp/.X11-unix/X{n}"));
-            if socket.exists() || Path::new(&format!("/tmp/.X{n}-lock")).exists() {
-                continue;
-            }
-            let child = Command::new("Xvfb")
-                .args([
-                    format!(":{n}").as_str(),
-                    "-screen",
-                    "0",
-                    "640x480x24",
-                    "-nolisten",
-                    "tcp",
-                ])
-                .stdout(Stdio::null())
-                .stderr(Stdio::null())
-                .spawn()
-                .expect("cannot start Xvfb");
-            let mut x = Xvfb {
+        // `-displayfd 1`: Xvfb picks a free display itself and prints its number on stdout
+        // once it accepts connections, so parallel tests never share a server.
+        let mut child = Command::new("Xvfb")
+            .args(["-displayfd", "1", "-screen", "0", "640x480x24", "-nolisten", "tcp"])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("cannot start Xvfb");
+        let mut line = String::new();
+        let stdout = child.stdout.take().expect("Xvfb stdout");
+        let read = BufReader::new(stdout).read_line(&mut line);
+        let number = line.trim().parse::<u32>();
+        match (read, number) {
+            (Ok(_), Ok(n)) => Xvfb {
                 child,
                 display: format!(":{n}"),
-            };
-            let start = Instant::now();
-            while start.elapsed() < Duration::from_secs(10) {
-                if socket.exists() {
-                    return x;
-                }
-                if let Ok(Some(_)) = x.child.try_wait() {
-                    break; // lost a race for this display; try the next
-                }
-                std::thread::sleep(Duration::from_millis(50));
+            },
+            _ => {
+                let _ = child.kill();
+                panic!("Xvfb did not report a display number (got '{}')", line.trim());
             }
-            let _ = x.child.kill();
         }
-        panic!("could not start Xvfb on any display");
     }
 }
 
@@ -230,6 +216,43 @@ fn window_shows_the_offscreen_render_and_saved_scene_reproduces_it() {
     // image, and so is the window capture against it.
     render(&scene, &coarse, &["--sample-distance", "2"]);
     assert!(!same_image(&coarse, &capture), "a coarser render passes the comparison");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A resize reaches the renderer: after the window grows, the full frame is the render at the
+/// new size, and shutting down after the resize is still clean.
+#[test]
+fn resized_window_renders_at_the_new_size() {
+    let dir = scratch("resize");
+    let scene = dir.join("scene.toml");
+    std::fs::write(&scene, SCENE).unwrap();
+    let (capture, reference) = (dir.join("window.png"), dir.join("render.png"));
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let x = Xvfb::start();
+    let out = caustica(
+        &[
+            "view",
+            &s(&scene),
+            "--size",
+            "64x48",
+            "--no-panel",
+            "--resize-after-idle",
+            "100x72",
+            "--exit-after-idle",
+            "--screenshot",
+            &s(&capture),
+        ],
+        Some(&x.display),
+        Duration::from_secs(120),
+    );
+    assert_ok(&out, "caustica view");
+    drop(x);
+    let args = ["render", &s(&scene), "--size", "100x72", "-o", &s(&reference)];
+    assert_ok(&caustica(&args, None, Duration::from_secs(60)), "caustica render");
+    assert!(
+        same_image(&capture, &reference),
+        "the resized window differs from `caustica render`"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

@@ -69,6 +69,10 @@ pub struct ViewArgs {
     /// camera by 5° as a mouse drag would (each frame is then an interactive one).
     #[arg(long, default_value_t = 0)]
     pub orbit_frames: u32,
+    /// Scripted interaction for tests: once the full frame is on screen, resize the window to
+    /// WIDTHxHEIGHT and refine again (before --screenshot and --exit-after-idle apply).
+    #[arg(long, value_parser = parse_size)]
+    pub resize_after_idle: Option<(u32, u32)>,
 }
 
 fn parse_size(s: &str) -> Result<(u32, u32), String> {
@@ -145,6 +149,7 @@ pub fn run(args: &ViewArgs) -> Result<()> {
         save_scene: args.save_scene.clone(),
         frame_log: args.frame_log,
         orbit_frames: args.orbit_frames,
+        resize_after_idle: args.resize_after_idle,
     };
     let mut app = window::App::new(state, worker, opts);
     let result = event_loop.run_app(&mut app);

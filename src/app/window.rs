@@ -64,6 +64,8 @@ pub struct Options {
     pub frame_log: bool,
     /// Scripted interaction: after each of the first N frames, orbit by 5° as a drag would.
     pub orbit_frames: u32,
+    /// Scripted interaction: once settled, resize the window to this size and settle again.
+    pub resize_after_idle: Option<(u32, u32)>,
 }
 
 pub struct App {
@@ -300,6 +302,15 @@ impl App {
             );
         }
         if self.progressive.settled() && !self.screenshot_done {
+            if let Some((w, h)) = self.opts.resize_after_idle.take() {
+                if let Some(s) = &self.surface {
+                    // Applied by the window system; the Resized event that follows brings a
+                    // new viewport size and so a new progressive sequence.
+                    let _ = s.window.request_inner_size(PhysicalSize::new(w, h));
+                    s.window.request_redraw();
+                }
+                return;
+            }
             self.screenshot_done = true;
             if let Some(path) = self.opts.screenshot.clone() {
                 if let Err(e) = self.capture(&path) {
