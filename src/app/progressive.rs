@@ -69,7 +69,7 @@ impl Progressive {
     pub fn new(now: Instant) -> Self {
         Progressive {
             version: 1,
-            last_change: now - IDLE_AFTER,
+            last_change: now.checked_sub(IDLE_AFTER).unwrap_or(now),
             in_flight: None,
             done: None,
         }

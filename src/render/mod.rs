@@ -155,6 +155,9 @@ pub struct Renderer {
     ctx: Arc<Context>,
     sources: HashMap<Pass, ShaderSource>,
     pipelines: HashMap<(Pass, Features, DebugView), Arc<ComputePipeline>>,
+    /// Scene textures of the last render, reused while the volume, transfer functions,
+    /// sample distance and environment stay the same.
+    textures: Option<upload::CachedTextures>,
 }
 
 impl Renderer {
@@ -167,6 +170,7 @@ impl Renderer {
             ctx,
             sources,
             pipelines: HashMap::new(),
+            textures: None,
         })
     }
 
@@ -210,7 +214,7 @@ impl Renderer {
             self.pipeline(Pass::Propagate, features, req.debug_view)?,
             self.pipeline(Pass::Finish, features, req.debug_view)?,
         ];
-        state::run(&self.ctx, prepared, req, features, &pipelines)
+        state::run(&self.ctx, prepared, req, features, &pipelines, &mut self.textures)
     }
 }
 

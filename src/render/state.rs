@@ -13,7 +13,7 @@ use crate::gpu::{
 
 use super::geometry::{light_direction, ViewSetup, MAX_LIGHT_VALUE, MIN_LIGHT_DIR_Z, MIN_VIEW_DIR_Z};
 use super::shaders::slot;
-use super::upload::{SceneTextures, ETA_TABLE_SIZE};
+use super::upload::{CachedTextures, SceneTextures, TexturesKey, ETA_TABLE_SIZE};
 use super::{
     background, DebugView, Features, Immediates, Params, PreparedScene, RenderError, RenderOutput, RenderRequest,
     RenderStats, RenderedImage,
@@ -125,6 +125,7 @@ pub(super) fn run(
     req: &RenderRequest,
     features: Features,
     pipelines: &[Arc<ComputePipeline>; 3],
+    cache: &mut Option<CachedTextures>,
 ) -> Result<RenderOutput, RenderError> {
     let (w, h) = (req.width, req.height);
     let max_2d = ctx.limits().max_image_dimension2_d;
@@ -147,16 +148,26 @@ pub(super) fn run(
         (Some(v), true) => Some((v.as_ref(), v.value_range)),
         _ => None,
     };
-    let mut textures = SceneTextures::upload(
-        ctx,
-        &mut rec,
-        vol,
-        window,
-        eta,
-        &prepared.tf,
-        prepared.scene.quality.sample_distance,
-        prepared.env.as_ref(),
-    )?;
+    // Scene textures are kept between renders while what they hold is unchanged (an
+    // interactive view changes mostly the camera and light).
+    let key = TexturesKey::new(prepared, features.eta_volume);
+    if !cache.as_ref().is_some_and(|c| c.matches(&key)) {
+        *cache = None; // free the old textures before allocating new ones
+        let textures = SceneTextures::upload(
+            ctx,
+            &mut rec,
+            vol,
+            window,
+            eta,
+            &prepared.tf,
+            prepared.scene.quality.sample_distance,
+            prepared.env.as_ref(),
+        )?;
+        *cache = Some(CachedTextures::new(key, textures));
+    }
+    let cached = cache
+        .as_mut()
+        .ok_or_else(|| RenderError::Setup("internal: scene textures missing".into()))?;
 
     let mut uniform = Buffer::new_upload(
         ctx,
@@ -168,7 +179,7 @@ pub(super) fn run(
         prepared,
         &view,
         req,
-        textures.env_levels,
+        cached.textures.env_levels,
     )))?;
 
     // Ping-pong state: state[side][k]; placeholders for buffers the scene does not need.
@@ -194,7 +205,7 @@ pub(super) fn run(
     for p in pipelines {
         let make = |read: usize| -> Result<DescriptorSet, GpuError> {
             let set = DescriptorSet::new(ctx, p, &format!("{} reads {}", p.label, ["A", "B"][read]))?;
-            let t = &textures;
+            let t = &cached.textures;
             let mut writes = vec![
                 (slot::PARAMS, Resource::Uniform(&uniform)),
                 (slot::VOLUME, Resource::Image(&t.volume)),
@@ -279,7 +290,7 @@ pub(super) fn run(
         };
         r.timestamp(&ts, 1);
         r.submit_and_wait()?;
-        textures.release_staging();
+        cached.uploaded();
         gpu_ms += ts.read_ms()?.iter().sum::<f64>();
         if let Some(b) = &bar {
             b.set_position(plane as u64);
