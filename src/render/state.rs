@@ -22,8 +22,9 @@ use super::{
 /// Planes recorded per submission: keeps each submission short (progress, responsiveness,
 /// watchdogs) while the per-submission overhead stays negligible.
 const PLANES_PER_SUBMIT: u32 = 128;
-/// Planes per submission of a cancellable render: a view change stops it within a few planes.
-const PLANES_PER_SUBMIT_CANCELLABLE: u32 = 8;
+/// Pixel-planes per submission of a cancellable render (between 1 and 8 planes): a view
+/// change stops it within about one plane of a 1024×768 image.
+const PIXEL_PLANES_PER_SUBMIT_CANCELLABLE: u32 = 1 << 20;
 const WORKGROUP: u32 = 8;
 
 /// The six state buffers of Algorithm 1, in binding order; `None` where the scene does not
@@ -246,7 +247,7 @@ pub(super) fn run(
     let mut plane = 1u32;
     let mut rec = Some(rec);
     let chunk = if req.cancel.is_some() {
-        PLANES_PER_SUBMIT_CANCELLABLE
+        (PIXEL_PLANES_PER_SUBMIT_CANCELLABLE / (w * h).max(1)).clamp(1, 8)
     } else {
         PLANES_PER_SUBMIT
     };
