@@ -65,33 +65,56 @@ fn scratch(name: &str) -> PathBuf {
     dir
 }
 
-/// Runs caustica with a time limit (a hung window must fail the test, not stall the suite).
-fn caustica(args: &[&str], display: Option<&str>, limit: Duration) -> Output {
+/// Starts caustica with validation required; stderr goes to a file (a pipe nobody reads
+/// could fill up and stall the viewer).
+fn spawn(args: &[&str], display: Option<&str>, stderr: &Path) -> Child {
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_caustica"));
     cmd.args(args)
         .env("CAUSTICA_VALIDATION", "require")
         .env_remove("WAYLAND_DISPLAY")
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped());
+        .stdout(Stdio::null())
+        .stderr(std::fs::File::create(stderr).unwrap());
     match display {
         Some(d) => cmd.env("DISPLAY", d),
         None => cmd.env_remove("DISPLAY"),
     };
-    let mut child = cmd.spawn().expect("cannot start caustica");
+    cmd.spawn().expect("cannot start caustica")
+}
+
+/// Waits for `child` with a time limit (a hung window must fail the test, not stall the
+/// suite); returns its exit status and stderr.
+fn finish(mut child: Child, stderr: &Path, limit: Duration, what: &str) -> (std::process::ExitStatus, String) {
     let start = Instant::now();
     loop {
-        if let Ok(Some(_)) = child.try_wait() {
-            return child.wait_with_output().unwrap();
+        if let Ok(Some(status)) = child.try_wait() {
+            return (status, std::fs::read_to_string(stderr).unwrap_or_default());
         }
         if start.elapsed() > limit {
             let _ = child.kill();
-            let out = child.wait_with_output().unwrap();
+            let _ = child.wait();
             panic!(
-                "caustica {args:?} did not finish within {limit:?}\n{}",
-                String::from_utf8_lossy(&out.stderr)
+                "{what} did not finish within {limit:?}\n{}",
+                std::fs::read_to_string(stderr).unwrap_or_default()
             );
         }
         std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// Runs caustica to completion within `limit`.
+fn caustica(args: &[&str], display: Option<&str>, limit: Duration) -> Output {
+    let stderr = std::env::temp_dir().join(format!(
+        "caustica-viewer-stderr-{}-{:?}",
+        std::process::id(),
+        std::thread::current().id()
+    ));
+    let child = spawn(args, display, &stderr);
+    let (status, text) = finish(child, &stderr, limit, &format!("caustica {args:?}"));
+    let _ = std::fs::remove_file(&stderr);
+    Output {
+        status,
+        stdout: Vec::new(),
+        stderr: text.into_bytes(),
     }
 }
 
@@ -274,4 +297,182 @@ fn without_a_display_the_viewer_fails_with_a_clear_message() {
     assert!(!out.status.success());
     assert!(stderr.contains("cannot connect to a display"), "{stderr}");
     assert!(!stderr.contains("panicked"), "{stderr}");
+}
+
+/// Real input through the X server (XTEST, as from a mouse and keyboard).
+mod input {
+    use std::time::{Duration, Instant};
+
+    use x11rb::connection::Connection;
+    use x11rb::protocol::xproto::{AtomEnum, ConnectionExt as _, InputFocus, Window};
+    use x11rb::protocol::xtest::ConnectionExt as _;
+    use x11rb::rust_connection::RustConnection;
+
+    const KEY_PRESS: u8 = 2;
+    const KEY_RELEASE: u8 = 3;
+    const BUTTON_PRESS: u8 = 4;
+    const BUTTON_RELEASE: u8 = 5;
+    const MOTION: u8 = 6;
+
+    pub struct X {
+        conn: RustConnection,
+        root: Window,
+        window: Window,
+        /// The viewer window's top-left corner on the screen.
+        origin: (i16, i16),
+    }
+
+    impl X {
+        /// Connects to `display` and waits for the window titled "caustica".
+        pub fn find_window(display: &str) -> X {
+            let (conn, screen) = x11rb::connect(Some(display)).expect("connect to Xvfb");
+            let root = conn.setup().roots[screen].root;
+            let start = Instant::now();
+            while start.elapsed() < Duration::from_secs(60) {
+                let children = conn.query_tree(root).unwrap().reply().unwrap().children;
+                for w in children {
+                    let name = conn
+                        .get_property(false, w, AtomEnum::WM_NAME, AtomEnum::ANY, 0, 64)
+                        .unwrap()
+                        .reply()
+                        .unwrap()
+                        .value;
+                    if name == b"caustica" {
+                        let t = conn.translate_coordinates(w, root, 0, 0).unwrap().reply().unwrap();
+                        return X {
+                            conn,
+                            root,
+                            window: w,
+                            origin: (t.dst_x, t.dst_y),
+                        };
+                    }
+                }
+                std::thread::sleep(Duration::from_millis(100));
+            }
+            panic!("no window titled 'caustica' appeared on {display}");
+        }
+
+        fn fake(&self, kind: u8, detail: u8, x: i16, y: i16) {
+            self.conn
+                .xtest_fake_input(kind, detail, 0, self.root, self.origin.0 + x, self.origin.1 + y, 0)
+                .unwrap();
+            self.conn.flush().unwrap();
+            // Separate frames, as a real hand would produce.
+            std::thread::sleep(Duration::from_millis(60));
+        }
+
+        /// A left-button drag inside the window, in `steps` moves.
+        pub fn drag(&self, from: (i16, i16), to: (i16, i16), steps: i16) {
+            self.fake(MOTION, 0, from.0, from.1);
+            self.fake(BUTTON_PRESS, 1, from.0, from.1);
+            for k in 1..=steps {
+                let x = from.0 + (to.0 - from.0) * k / steps;
+                let y = from.1 + (to.1 - from.1) * k / steps;
+                self.fake(MOTION, 0, x, y);
+            }
+            self.fake(BUTTON_RELEASE, 1, to.0, to.1);
+        }
+
+        /// Gives the window the keyboard focus (the job of a window manager, which Xvfb runs
+        /// without), then presses and releases the key that types `keysym`.
+        pub fn key(&self, keysym: u32) {
+            self.conn
+                .set_input_focus(InputFocus::PARENT, self.window, x11rb::CURRENT_TIME)
+                .unwrap();
+            self.conn.flush().unwrap();
+            std::thread::sleep(Duration::from_millis(200));
+            let setup = self.conn.setup();
+            let (min, max) = (setup.min_keycode, setup.max_keycode);
+            let map = self
+                .conn
+                .get_keyboard_mapping(min, max - min + 1)
+                .unwrap()
+                .reply()
+                .unwrap();
+            let per = map.keysyms_per_keycode as usize;
+            let index = map
+                .keysyms
+                .iter()
+                .position(|k| *k == keysym)
+                .expect("keysym on the keyboard map");
+            let keycode = min + (index / per) as u8;
+            self.fake(KEY_PRESS, keycode, 10, 10);
+            self.fake(KEY_RELEASE, keycode, 10, 10);
+        }
+    }
+}
+
+/// Scripted input through the X server: a mouse drag orbits the camera, the view settles
+/// again, the saved scene carries the new camera and renders what the window shows, and the
+/// `q` key closes the window cleanly.
+#[test]
+fn mouse_drag_orbits_and_q_quits_cleanly() {
+    let dir = scratch("input");
+    let scene = dir.join("scene.toml");
+    std::fs::write(&scene, SCENE).unwrap();
+    let (capture, saved, reference, log) = (
+        dir.join("window.png"),
+        dir.join("saved.toml"),
+        dir.join("render.png"),
+        dir.join("stderr.txt"),
+    );
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let x = Xvfb::start();
+    let args = [
+        "view",
+        &s(&scene),
+        "--size",
+        "96x80",
+        "--no-panel",
+        "--screenshot",
+        &s(&capture),
+        "--save-scene",
+        &s(&saved),
+    ];
+    let child = spawn(&args, Some(&x.display), &log);
+    let wait_for = |what: &str, done: &dyn Fn() -> bool| {
+        let start = Instant::now();
+        while !done() {
+            assert!(
+                start.elapsed() < Duration::from_secs(90),
+                "timed out waiting for {what}\n{}",
+                std::fs::read_to_string(&log).unwrap_or_default()
+            );
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    };
+    let read = |p: &Path| std::fs::read_to_string(p).unwrap_or_default();
+    wait_for("the first full frame", &|| !read(&saved).is_empty());
+    let first = read(&saved);
+    let input = input::X::find_window(&x.display);
+    input.drag((48, 40), (88, 40), 8);
+    wait_for("the full frame after the drag", &|| {
+        let now = read(&saved);
+        !now.is_empty() && now != first
+    });
+    input.key(u32::from(b'q'));
+    let (status, stderr) = finish(child, &log, Duration::from_secs(60), "caustica view");
+    assert!(status.success(), "caustica view failed ({status}):\n{stderr}");
+    assert!(!stderr.contains("validation error"), "validation errors:\n{stderr}");
+    drop(x);
+
+    let yaw = |text: &str| -> f32 {
+        let scene: toml::Value = toml::from_str(text).unwrap();
+        scene["camera"]["yaw_deg"].as_float().unwrap() as f32
+    };
+    // 40 pixels right at 0.4°/pixel turn the yaw down by up to 16° (egui keeps back the first
+    // few pixels until it knows the press is a drag).
+    let turned = yaw(&first) - yaw(&read(&saved));
+    assert!((8.0..=16.5).contains(&turned), "yaw turned by {turned}°");
+    let out = caustica(
+        &["render", &s(&saved), "--size", "96x80", "-o", &s(&reference)],
+        None,
+        Duration::from_secs(60),
+    );
+    assert_ok(&out, "caustica render");
+    assert!(
+        same_image(&capture, &reference),
+        "the window after the drag differs from the saved scene's render"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -55,11 +55,11 @@ pub struct ViewArgs {
     /// Quit once the full-quality frame is on screen.
     #[arg(long)]
     pub exit_after_idle: bool,
-    /// Once the full-quality frame is on screen, write what the window shows (read back from
-    /// the window system, panel included) to this PNG.
+    /// Whenever the view settles to its full-quality frame, write what the window shows (read
+    /// back from the window system, panel included) to this PNG.
     #[arg(long)]
     pub screenshot: Option<PathBuf>,
-    /// Once the full-quality frame is on screen, save the scene (as Ctrl+S does) to this TOML.
+    /// Whenever the view settles to its full-quality frame, save the scene (as Ctrl+S does).
     #[arg(long)]
     pub save_scene: Option<PathBuf>,
     /// Print each frame shown (quality level, size, planes, render time) and paint times.

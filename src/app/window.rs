@@ -84,7 +84,8 @@ pub struct App {
     /// The viewport has no pixels (minimised): nothing to render, so nothing to wait for.
     no_viewport: bool,
     pub error: Option<anyhow::Error>,
-    screenshot_done: bool,
+    /// The view version whose settled frame was last written (--screenshot, --save-scene).
+    written_version: u64,
 }
 
 impl App {
@@ -104,7 +105,7 @@ impl App {
             cancel: Arc::new(AtomicBool::new(false)),
             no_viewport: false,
             error: None,
-            screenshot_done: false,
+            written_version: 0,
         }
     }
 
@@ -301,7 +302,8 @@ impl App {
                 size.width, size.height
             );
         }
-        if self.progressive.settled() && !self.screenshot_done {
+        // Each time the view settles to a new full frame: outputs are (re)written.
+        if self.progressive.settled() && self.written_version != self.progressive.version() {
             if let Some((w, h)) = self.opts.resize_after_idle.take() {
                 if let Some(s) = &self.surface {
                     // Applied by the window system; the Resized event that follows brings a
@@ -311,7 +313,7 @@ impl App {
                 }
                 return;
             }
-            self.screenshot_done = true;
+            self.written_version = self.progressive.version();
             if let Some(path) = self.opts.screenshot.clone() {
                 if let Err(e) = self.capture(&path) {
                     self.fail(event_loop, e);
