@@ -304,7 +304,7 @@ mod input {
     use std::time::{Duration, Instant};
 
     use x11rb::connection::Connection;
-    use x11rb::protocol::xproto::{AtomEnum, ConnectionExt as _, InputFocus, Window};
+    use x11rb::protocol::xproto::{AtomEnum, ClientMessageEvent, ConnectionExt as _, EventMask, InputFocus, Window};
     use x11rb::protocol::xtest::ConnectionExt as _;
     use x11rb::rust_connection::RustConnection;
 
@@ -371,6 +371,17 @@ mod input {
                 self.fake(MOTION, 0, x, y);
             }
             self.fake(BUTTON_RELEASE, 1, to.0, to.1);
+        }
+
+        /// What a window manager sends when the user clicks the close button.
+        pub fn close(&self) {
+            let atom = |name: &[u8]| self.conn.intern_atom(false, name).unwrap().reply().unwrap().atom;
+            let (protocols, delete) = (atom(b"WM_PROTOCOLS"), atom(b"WM_DELETE_WINDOW"));
+            let event = ClientMessageEvent::new(32, self.window, protocols, [delete, x11rb::CURRENT_TIME, 0, 0, 0]);
+            self.conn
+                .send_event(false, self.window, EventMask::NO_EVENT, event)
+                .unwrap();
+            self.conn.flush().unwrap();
         }
 
         /// Gives the window the keyboard focus (the job of a window manager, which Xvfb runs
@@ -474,5 +485,49 @@ fn mouse_drag_orbits_and_q_quits_cleanly() {
         same_image(&capture, &reference),
         "the window after the drag differs from the saved scene's render"
     );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The close button (the window manager's WM_DELETE_WINDOW message) while the view is
+/// refining shuts down cleanly: the running render is cancelled, no validation error and no
+/// object is left at device destruction.
+#[test]
+fn close_button_during_refinement_shuts_down_cleanly() {
+    let dir = scratch("close");
+    let log = dir.join("stderr.txt");
+    let x = Xvfb::start();
+    // A larger window, so the full frame is still rendering when the close arrives.
+    let child = spawn(
+        &[
+            "view",
+            "--scene",
+            "ball-lens",
+            "--resolution",
+            "48",
+            "--size",
+            "320x240",
+            "--frame-log",
+        ],
+        Some(&x.display),
+        &log,
+    );
+    let input = input::X::find_window(&x.display);
+    let start = Instant::now();
+    while !std::fs::read_to_string(&log)
+        .unwrap_or_default()
+        .contains("frame: interactive")
+    {
+        assert!(start.elapsed() < Duration::from_secs(60), "no frame was shown");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    input.close();
+    let (status, stderr) = finish(child, &log, Duration::from_secs(60), "caustica view");
+    assert!(status.success(), "caustica view failed ({status}):\n{stderr}");
+    assert!(!stderr.contains("validation error"), "validation errors:\n{stderr}");
+    assert!(
+        !stderr.contains("frame: full"),
+        "closed before the full frame:\n{stderr}"
+    );
+    drop(x);
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -102,10 +102,12 @@ impl ViewState {
         let mut actions = Vec::new();
         self.shortcuts(ui, &mut actions);
         if self.show_panel {
+            // At most half the window, so a small window still shows the image.
+            let max = (ui.available_width() * 0.5).clamp(120.0, 380.0);
             egui::Panel::left("caustica panel")
                 .resizable(true)
-                .default_size(320.0)
-                .size_range(240.0..=380.0)
+                .default_size(320.0f32.min(max))
+                .size_range(120.0f32.min(max)..=max)
                 .show(ui, |ui| {
                     egui::ScrollArea::vertical().show(ui, |ui| self.panel(ui, &mut actions));
                 });
