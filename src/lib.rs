@@ -13,11 +13,13 @@
 //! | [`render`] | the method on top of `gpu`: planes, propagation, environment, output; `Features` |
 //! | [`reference`] | CPU renderers used to check the GPU one; the independent reference (f64, photons) |
 //! | [`bench`] | the speed–accuracy sweep: GPU frame times and errors against the reference |
+//! | [`app`] | the interactive viewer (`caustica view`): winit window, egui panel, progressive frames |
 //!
-//! Each layer only calls the one below it: `main` uses `render` + `scene`; `render` uses `gpu`;
+//! Each layer only calls the one below it: `main` and `app` use `render` + `scene`; `render` uses `gpu`;
 //! nothing in `gpu` knows what a volume is.
 
 pub mod bench;
+pub mod app;
 pub mod gpu;
 pub mod reference;
 pub mod render;

@@ -52,6 +52,8 @@ struct Cli {
 enum Command {
     /// Render a scene file, a volume file or a built-in scene to PNG (sRGB) or EXR (linear).
     Render(Box<RenderArgs>),
+    /// Open an interactive window: edit camera, light, transfer functions and quality.
+    View(Box<caustica::app::ViewArgs>),
     /// List the built-in scenes.
     Scenes,
     /// List the Vulkan devices caustica sees.
@@ -367,6 +369,7 @@ fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Render(args) => render(&args),
         Command::Bench(args) => bench(&args),
+        Command::View(args) => caustica::app::run(&args),
         Command::Scenes => {
             for name in BUILTIN_SCENES {
                 let s = builtin(name)?;

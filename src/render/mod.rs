@@ -21,6 +21,7 @@ pub use params::{Immediates, Params};
 pub use upload::ETA_TABLE_SIZE;
 
 use std::collections::HashMap;
+use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
 use crate::gpu::shader::ShaderSource;
@@ -43,6 +44,9 @@ pub enum RenderError {
     Environment(#[from] EnvError),
     #[error("cannot render this view: {0}")]
     Setup(String),
+    /// The request's cancel flag was set (an interactive view changed before it finished).
+    #[error("render cancelled")]
+    Cancelled,
 }
 
 /// A scene with its data loaded: volumes, transfer functions, environment image.
@@ -113,6 +117,9 @@ pub struct RenderRequest {
     /// Safeguards to switch off ([`safeguards`] bits). Tests only: 0 in every real render.
     #[doc(hidden)]
     pub safeguards_off: u32,
+    /// Checked between submissions: when set, the render stops with [`RenderError::Cancelled`].
+    /// Renders with a flag are submitted in smaller chunks so they stop sooner.
+    pub cancel: Option<Arc<AtomicBool>>,
 }
 
 impl RenderRequest {
@@ -124,6 +131,7 @@ impl RenderRequest {
             debug_depth: 1.0,
             progress: false,
             safeguards_off: 0,
+            cancel: None,
         }
     }
 }
@@ -157,6 +165,9 @@ pub struct Renderer {
     ctx: Arc<Context>,
     sources: HashMap<(Pass, Precision), ShaderSource>,
     pipelines: HashMap<(Pass, Precision, Features, DebugView, u32), Arc<ComputePipeline>>,
+    /// Scene textures of the last render, reused while the volume, transfer functions,
+    /// sample distance and environment stay the same.
+    textures: Option<upload::CachedTextures>,
 }
 
 /// Out of device memory at 16-bit precision: halve the image size at most this many times,
@@ -169,6 +180,7 @@ impl Renderer {
             ctx,
             sources: HashMap::new(),
             pipelines: HashMap::new(),
+            textures: None,
         })
     }
 
@@ -265,7 +277,7 @@ impl Renderer {
             self.pipeline(Pass::Propagate, precision, features, req.debug_view, off)?,
             self.pipeline(Pass::Finish, precision, features, req.debug_view, off)?,
         ];
-        state::run(&self.ctx, prepared, req, features, precision, &pipelines)
+        state::run(&self.ctx, prepared, req, features, precision, &pipelines, &mut self.textures)
     }
 }
 

@@ -13,7 +13,7 @@ use crate::gpu::{
 
 use super::geometry::{light_direction, ViewSetup, MAX_LIGHT_VALUE, MIN_LIGHT_DIR_Z, MIN_VIEW_DIR_Z};
 use super::shaders::slot;
-use super::upload::{SceneTextures, ETA_TABLE_SIZE};
+use super::upload::{CachedTextures, SceneTextures, TexturesKey, ETA_TABLE_SIZE};
 use super::{
     background, DebugView, Features, Immediates, Params, PreparedScene, RenderError, RenderOutput, RenderRequest,
     RenderStats, RenderedImage,
@@ -27,6 +27,9 @@ const PLANES_PER_SUBMIT: u32 = 128;
 /// below the fence timeout (`gpu::FENCE_TIMEOUT`) even at the device's largest image on a CPU
 /// driver: 2^24 texels take about 5 s on lavapipe on two cores.
 const TEXELS_PER_SUBMIT: u64 = 1 << 24;
+/// Pixel-planes per submission of a cancellable render (between 1 and 8 planes): a view
+/// change stops it within about one plane of a 1024×768 image.
+const PIXEL_PLANES_PER_SUBMIT_CANCELLABLE: u32 = 1 << 20;
 const WORKGROUP: u32 = 8;
 
 /// The six state buffers of Algorithm 1, in binding order, with their storage formats at
@@ -137,6 +140,7 @@ pub(super) fn run(
     features: Features,
     precision: Precision,
     pipelines: &[Arc<ComputePipeline>; 3],
+    cache: &mut Option<CachedTextures>,
 ) -> Result<RenderOutput, RenderError> {
     let (w, h) = (req.width, req.height);
     let max_2d = ctx.limits().max_image_dimension2_d;
@@ -159,16 +163,26 @@ pub(super) fn run(
         (Some(v), true) => Some((v.as_ref(), v.value_range)),
         _ => None,
     };
-    let mut textures = SceneTextures::upload(
-        ctx,
-        &mut rec,
-        vol,
-        window,
-        eta,
-        &prepared.tf,
-        prepared.scene.quality.sample_distance,
-        prepared.env.as_ref(),
-    )?;
+    // Scene textures are kept between renders while what they hold is unchanged (an
+    // interactive view changes mostly the camera and light).
+    let key = TexturesKey::new(prepared, features.eta_volume);
+    if !cache.as_ref().is_some_and(|c| c.matches(&key)) {
+        *cache = None; // free the old textures before allocating new ones
+        let textures = SceneTextures::upload(
+            ctx,
+            &mut rec,
+            vol,
+            window,
+            eta,
+            &prepared.tf,
+            prepared.scene.quality.sample_distance,
+            prepared.env.as_ref(),
+        )?;
+        *cache = Some(CachedTextures::new(key, textures));
+    }
+    let cached = cache
+        .as_mut()
+        .ok_or_else(|| RenderError::Setup("internal: scene textures missing".into()))?;
 
     let mut uniform = Buffer::new_upload(
         ctx,
@@ -180,7 +194,7 @@ pub(super) fn run(
         prepared,
         &view,
         req,
-        textures.env_levels,
+        cached.textures.env_levels,
     )))?;
 
     // Ping-pong state: state[side][k]; placeholders for buffers the scene does not need.
@@ -206,7 +220,7 @@ pub(super) fn run(
     for p in pipelines {
         let make = |read: usize| -> Result<DescriptorSet, GpuError> {
             let set = DescriptorSet::new(ctx, p, &format!("{} reads {}", p.label, ["A", "B"][read]))?;
-            let t = &textures;
+            let t = &cached.textures;
             let mut writes = vec![
                 (slot::PARAMS, Resource::Uniform(&uniform)),
                 (slot::VOLUME, Resource::Image(&t.volume)),
@@ -247,7 +261,19 @@ pub(super) fn run(
     let mut gpu_ms = 0.0;
     let mut plane = 1u32;
     let mut rec = Some(rec);
+    let chunk = if req.cancel.is_some() {
+        (PIXEL_PLANES_PER_SUBMIT_CANCELLABLE / (w * h).max(1)).clamp(1, 8)
+    } else {
+        planes_per_submit
+    };
     loop {
+        if req
+            .cancel
+            .as_ref()
+            .is_some_and(|c| c.load(std::sync::atomic::Ordering::Relaxed))
+        {
+            return Err(RenderError::Cancelled);
+        }
         let mut r = match rec.take() {
             Some(r) => r,
             None => Recorder::new(ctx, "render: planes")?,
@@ -255,7 +281,7 @@ pub(super) fn run(
         let ts = Timestamps::new(ctx, 2)?;
         r.reset_timestamps(&ts);
         r.timestamp(&ts, 0);
-        let end = (plane + planes_per_submit).min(planes_run);
+        let end = (plane + chunk).min(planes_run);
         while plane < end {
             let read = ((plane - 1) % 2) as usize;
             r.dispatch(&pipelines[1], &sets[1][read], bytemuck::bytes_of(&push(plane)), groups);
@@ -280,7 +306,7 @@ pub(super) fn run(
         };
         r.timestamp(&ts, 1);
         r.submit_and_wait()?;
-        textures.release_staging();
+        cached.uploaded();
         gpu_ms += ts.read_ms()?.iter().sum::<f64>();
         if let Some(b) = &bar {
             b.set_position(plane as u64);

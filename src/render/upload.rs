@@ -216,6 +216,73 @@ impl SceneTextures {
     }
 }
 
+/// What the scene textures were made from. The volumes are compared by identity and kept
+/// alive here, so a freed volume's address cannot be mistaken for a new one.
+pub struct TexturesKey {
+    volume: Arc<Volume>,
+    eta_volume: Option<Arc<Volume>>,
+    window: [f32; 2],
+    tf: TransferFunctions,
+    sample_distance: f32,
+    environment: crate::scene::Environment,
+}
+
+impl TexturesKey {
+    pub fn new(prepared: &super::PreparedScene, uses_eta_volume: bool) -> Self {
+        TexturesKey {
+            volume: prepared.volume.clone(),
+            eta_volume: prepared.eta_volume.clone().filter(|_| uses_eta_volume),
+            window: prepared.window(),
+            tf: prepared.tf.clone(),
+            sample_distance: prepared.scene.quality.sample_distance,
+            environment: prepared.scene.environment.clone(),
+        }
+    }
+
+    fn same(&self, other: &TexturesKey) -> bool {
+        let eta_same = match (&self.eta_volume, &other.eta_volume) {
+            (Some(a), Some(b)) => Arc::ptr_eq(a, b),
+            (None, None) => true,
+            _ => false,
+        };
+        Arc::ptr_eq(&self.volume, &other.volume)
+            && eta_same
+            && self.window == other.window
+            && self.tf == other.tf
+            && self.sample_distance == other.sample_distance
+            && self.environment == other.environment
+    }
+}
+
+/// Scene textures kept by the renderer between renders.
+pub struct CachedTextures {
+    key: TexturesKey,
+    pub textures: SceneTextures,
+    /// The upload commands have executed; until then (a render cancelled or failed before
+    /// its first submission) the textures hold nothing and must not be reused.
+    uploaded: bool,
+}
+
+impl CachedTextures {
+    pub fn new(key: TexturesKey, textures: SceneTextures) -> Self {
+        CachedTextures {
+            key,
+            textures,
+            uploaded: false,
+        }
+    }
+
+    pub fn matches(&self, key: &TexturesKey) -> bool {
+        self.uploaded && self.key.same(key)
+    }
+
+    /// Called after a submission that contained the upload has completed.
+    pub fn uploaded(&mut self) {
+        self.uploaded = true;
+        self.textures.release_staging();
+    }
+}
+
 fn missing() -> GpuError {
     GpuError::Allocation {
         what: "scene textures".into(),

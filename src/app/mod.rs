@@ -1,0 +1,166 @@
+//! The interactive viewer (`caustica view`): a winit window with an egui panel for camera,
+//! light, transfer-function, effect and quality editing.
+//!
+//! Data flow: the panel edits a [`panel::ViewState`] (scene + transfer-function editor); every
+//! change bumps the [`progressive`] scheduler, which asks the render thread ([`worker`]) for a
+//! coarse frame while the user drags and for finer ones once idle. The render thread runs the
+//! very same `render::Renderer` as `caustica render`; its full-quality frame is the offscreen
+//! render of the same scene and size, shown pixel for pixel. The window paints that image and
+//! the panel on the CPU ([`raster`]) into a softbuffer surface.
+
+pub mod controls;
+pub mod panel;
+#[cfg(test)]
+mod panel_tests;
+pub mod progressive;
+pub mod raster;
+pub mod save;
+pub mod tf_model;
+mod widgets;
+mod window;
+mod worker;
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context as _, Result};
+
+use crate::gpu::{Context, ContextDesc, DeviceSelector};
+use crate::render::{PreparedScene, Renderer};
+use crate::scene::{builtin, Scene, TransferSource, VolumeSource};
+use crate::transfer::TransferFunctions;
+
+/// `caustica view` options.
+#[derive(clap::Args, Debug)]
+pub struct ViewArgs {
+    /// A scene file (.toml) or a volume file (.nrrd, .nhdr).
+    pub input: Option<PathBuf>,
+    /// View a built-in scene instead (see `caustica scenes`).
+    #[arg(long, conflicts_with = "input")]
+    pub scene: Option<String>,
+    /// Window size, WIDTHxHEIGHT (pixels).
+    #[arg(long, default_value = "1024x768", value_parser = parse_size)]
+    pub size: (u32, u32),
+    /// Vulkan device: index or name substring (see `caustica devices`).
+    #[arg(long, default_value = "auto")]
+    pub device: String,
+    /// Transfer functions (JSON), replacing those of the scene.
+    #[arg(long)]
+    pub transfer: Option<PathBuf>,
+    /// Override the resolution of a built-in scene's volume.
+    #[arg(long)]
+    pub resolution: Option<usize>,
+    /// Start with the panel hidden (Tab shows it): the render fills the window.
+    #[arg(long)]
+    pub no_panel: bool,
+    /// Quit once the full-quality frame is on screen.
+    #[arg(long)]
+    pub exit_after_idle: bool,
+    /// Whenever the view settles to its full-quality frame, write what the window shows (read
+    /// back from the window system, panel included) to this PNG.
+    #[arg(long)]
+    pub screenshot: Option<PathBuf>,
+    /// Whenever the view settles to its full-quality frame, save the scene (as Ctrl+S does).
+    #[arg(long)]
+    pub save_scene: Option<PathBuf>,
+    /// Print each frame shown (quality level, size, planes, render time) and paint times.
+    #[arg(long)]
+    pub frame_log: bool,
+    /// Scripted interaction for measurements: after each of the first N frames, orbit the
+    /// camera by 5° as a mouse drag would (each frame is then an interactive one).
+    #[arg(long, default_value_t = 0)]
+    pub orbit_frames: u32,
+    /// Scripted interaction for tests: once the full frame is on screen, resize the window to
+    /// WIDTHxHEIGHT and refine again (before --screenshot and --exit-after-idle apply).
+    #[arg(long, value_parser = parse_size)]
+    pub resize_after_idle: Option<(u32, u32)>,
+}
+
+fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s.split_once(['x', 'X']).ok_or("expected WIDTHxHEIGHT, e.g. 1024x768")?;
+    let p = |v: &str| v.trim().parse::<u32>().map_err(|e| format!("'{v}': {e}"));
+    let (w, h) = (p(w)?, p(h)?);
+    if !(1..=16384).contains(&w) || !(1..=16384).contains(&h) {
+        return Err("width and height must be between 1 and 16384".into());
+    }
+    Ok((w, h))
+}
+
+fn load_scene(args: &ViewArgs) -> Result<Scene> {
+    let mut scene = match (&args.scene, &args.input) {
+        (Some(name), _) => builtin(name)?.scene,
+        (None, Some(path)) if path.extension().is_some_and(|e| e == "toml") => Scene::load(path)?,
+        (None, Some(path)) => Scene {
+            volume: VolumeSource::File { path: path.clone() },
+            eta_volume: None,
+            window: None,
+            transfer: TransferSource::Inline(TransferFunctions::default()),
+            camera: Default::default(),
+            light: Default::default(),
+            shading: Default::default(),
+            clip: None,
+            environment: Default::default(),
+            quality: Default::default(),
+        },
+        (None, None) => bail!("give a scene file, a volume file or --scene NAME (see `caustica scenes`)"),
+    };
+    if let Some(path) = &args.transfer {
+        scene.transfer = TransferSource::Inline(TransferFunctions::load(path)?);
+    }
+    if let (Some(r), VolumeSource::Builtin { resolution, .. }) = (args.resolution, &mut scene.volume) {
+        *resolution = r;
+    }
+    scene.validate()?;
+    Ok(scene)
+}
+
+/// Where the transfer-function presets are: `transfer_functions/` next to the working
+/// directory, else the one of the source tree this binary was built from.
+fn presets_dir() -> PathBuf {
+    let local = Path::new("transfer_functions");
+    if local.is_dir() {
+        local.to_path_buf()
+    } else {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("transfer_functions")
+    }
+}
+
+/// Runs the viewer until the window is closed (or, with `--exit-after-idle`, settles).
+pub fn run(args: &ViewArgs) -> Result<()> {
+    let scene = load_scene(args)?;
+    let prepared = PreparedScene::load(&scene)?;
+    let histogram = panel::histogram(&prepared.volume.data, prepared.window());
+    let mut state = panel::ViewState::new(scene, histogram, &presets_dir())?;
+    state.show_panel = !args.no_panel;
+    state.screenshot_size = [args.size.0, args.size.1];
+
+    let ctx = Context::new(&ContextDesc::from_env(DeviceSelector::parse(&args.device)))?;
+    let renderer = Renderer::new(ctx.clone())?;
+    let event_loop = winit::event_loop::EventLoop::<window::Wake>::with_user_event()
+        .build()
+        .context("cannot connect to a display (is DISPLAY set? `caustica render` works without one)")?;
+    let proxy = event_loop.create_proxy();
+    let worker = worker::Worker::start(renderer, prepared, move || {
+        let _ = proxy.send_event(window::Wake);
+    });
+    let opts = window::Options {
+        size: args.size,
+        exit_after_idle: args.exit_after_idle,
+        screenshot: args.screenshot.clone(),
+        save_scene: args.save_scene.clone(),
+        frame_log: args.frame_log,
+        orbit_frames: args.orbit_frames,
+        resize_after_idle: args.resize_after_idle,
+    };
+    let mut app = window::App::new(state, worker, opts);
+    let result = event_loop.run_app(&mut app);
+    app.shutdown();
+    if let Some(e) = app.error.take() {
+        return Err(e);
+    }
+    result.context("window event loop failed")?;
+    let errors = ctx.validation_errors();
+    if errors > 0 {
+        bail!("{errors} Vulkan validation errors were reported");
+    }
+    Ok(())
+}

@@ -1,0 +1,243 @@
+//! The panel and viewport controls run headless: `egui::Context::run_ui` with synthetic
+//! pointer and key events, exactly the code the window runs.
+
+use egui::{Event, Key, Modifiers, PointerButton, Pos2, RawInput, Rect, Vec2};
+
+use super::panel::{Action, ViewState};
+use super::tf_model::Function;
+use crate::scene::builtin;
+
+struct Harness {
+    ctx: egui::Context,
+    state: ViewState,
+    screen: Vec2,
+}
+
+impl Harness {
+    fn new() -> Self {
+        Self::with_screen(Vec2::new(1024.0, 768.0))
+    }
+
+    /// A taller screen shows the whole panel without scrolling.
+    fn with_screen(screen: Vec2) -> Self {
+        let scene = builtin("ball-lens").unwrap().scene;
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("transfer_functions");
+        let histogram = super::panel::histogram(&[0.0, 0.0, 0.5, 1.0], [0.0, 1.0]);
+        let mut h = Harness {
+            ctx: egui::Context::default(),
+            state: ViewState::new(scene, histogram, &dir).unwrap(),
+            screen,
+        };
+        // Settle the layout (egui sizes some widgets on the second pass).
+        h.frame(vec![]);
+        h.frame(vec![]);
+        h
+    }
+
+    fn frame(&mut self, events: Vec<Event>) -> Vec<Action> {
+        let input = RawInput {
+            screen_rect: Some(Rect::from_min_size(Pos2::ZERO, self.screen)),
+            events,
+            ..Default::default()
+        };
+        let state = &mut self.state;
+        let mut actions = Vec::new();
+        let out = self.ctx.run_ui(input, |ui| actions.extend(state.ui(ui)));
+        assert!(
+            !self.state.show_panel || !out.shapes.is_empty(),
+            "the panel paints something"
+        );
+        actions
+    }
+
+    fn button(pos: Pos2, button: PointerButton, pressed: bool) -> Event {
+        Event::PointerButton {
+            pos,
+            button,
+            pressed,
+            modifiers: Modifiers::NONE,
+        }
+    }
+
+    fn click(&mut self, pos: Pos2, button: PointerButton) -> Vec<Action> {
+        let mut a = self.frame(vec![Event::PointerMoved(pos), Self::button(pos, button, true)]);
+        a.extend(self.frame(vec![Self::button(pos, button, false)]));
+        a.extend(self.frame(vec![]));
+        a
+    }
+
+    fn drag(&mut self, from: Pos2, to: Pos2) {
+        self.frame(vec![
+            Event::PointerMoved(from),
+            Self::button(from, PointerButton::Primary, true),
+        ]);
+        for k in 1..=4 {
+            self.frame(vec![Event::PointerMoved(from + (to - from) * (k as f32 / 4.0))]);
+        }
+        self.frame(vec![Self::button(to, PointerButton::Primary, false)]);
+    }
+
+    fn key(&mut self, key: Key, modifiers: Modifiers) -> Vec<Action> {
+        let ev = |pressed| Event::Key {
+            key,
+            physical_key: None,
+            pressed,
+            repeat: false,
+            modifiers,
+        };
+        self.frame(vec![ev(true), ev(false)])
+    }
+
+    fn rect(&self, name: &str) -> Rect {
+        *self
+            .state
+            .rects
+            .get(name)
+            .unwrap_or_else(|| panic!("no widget '{name}' was laid out"))
+    }
+}
+
+#[test]
+fn viewport_is_beside_the_panel_and_fills_the_window_without_it() {
+    let mut h = Harness::new();
+    let vp = h.state.viewport;
+    assert!(vp.min.x > 200.0 && vp.max.x == 1024.0 && vp.height() == 768.0, "{vp:?}");
+    h.key(Key::Tab, Modifiers::NONE);
+    h.frame(vec![]);
+    assert!(!h.state.show_panel);
+    assert_eq!(
+        h.state.viewport,
+        Rect::from_min_size(Pos2::ZERO, Vec2::new(1024.0, 768.0))
+    );
+}
+
+#[test]
+fn clicking_the_opacity_curve_adds_a_point_and_undo_removes_it() {
+    let mut h = Harness::new();
+    let before = h.state.tf.tf().clone();
+    let n = h.state.tf.len(Function::Opacity);
+    let r = h.rect("opacity");
+    // An empty spot: half way across, near the top (the ball-lens curve is low there).
+    let spot = Pos2::new(r.left() + 0.37 * r.width(), r.top() + 0.1 * r.height());
+    h.click(spot, PointerButton::Primary);
+    assert_eq!(h.state.tf.len(Function::Opacity), n + 1);
+    let (f, i) = h.state.selection.selected.expect("the new point is selected");
+    assert_eq!(f, Function::Opacity);
+    let p = h.state.tf.point(f, i).unwrap();
+    assert!((p[0] - 0.37).abs() < 0.02 && (p[1] - 0.9).abs() < 0.03, "{p:?}");
+    assert!(
+        h.state.scene_for_render() != h.state.scene,
+        "the edit reaches the rendered scene"
+    );
+
+    // Drag the point down to the bottom: one undo step for the whole drag.
+    let at = Pos2::new(r.left() + p[0] * r.width(), r.top() + (1.0 - p[1]) * r.height());
+    h.drag(at, Pos2::new(at.x, r.bottom() + 40.0));
+    let moved = h.state.tf.point(Function::Opacity, i).unwrap();
+    assert_eq!(moved[1], 0.0, "dragging past the bottom clamps to 0");
+
+    h.key(Key::Z, Modifiers::COMMAND);
+    assert!((h.state.tf.point(Function::Opacity, i).unwrap()[1] - p[1]).abs() < 1e-6);
+    h.key(Key::Z, Modifiers::COMMAND);
+    assert_eq!(h.state.tf.tf(), &before);
+    h.key(Key::Y, Modifiers::COMMAND);
+    assert_eq!(h.state.tf.len(Function::Opacity), n + 1);
+
+    // Right-click on the point deletes it.
+    let p = h.state.tf.point(Function::Opacity, i).unwrap();
+    let at = Pos2::new(r.left() + p[0] * r.width(), r.top() + (1.0 - p[1]) * r.height());
+    h.click(at, PointerButton::Secondary);
+    assert_eq!(h.state.tf.len(Function::Opacity), n);
+}
+
+#[test]
+fn colour_ramp_click_inserts_without_changing_the_gradient() {
+    let mut h = Harness::new();
+    let r = h.rect("medium colour");
+    let n = h.state.tf.len(Function::Medium);
+    let before = h.state.tf.eval(Function::Medium, 0.62);
+    h.click(
+        Pos2::new(r.left() + 0.62 * r.width(), r.center().y),
+        PointerButton::Primary,
+    );
+    assert_eq!(h.state.tf.len(Function::Medium), n + 1);
+    let after = h.state.tf.eval(Function::Medium, 0.62);
+    for k in 0..3 {
+        assert!((after[k] - before[k]).abs() < 1e-5);
+    }
+}
+
+#[test]
+fn viewport_drag_orbits_and_wheel_zooms() {
+    let mut h = Harness::new();
+    let c0 = h.state.scene.camera.clone();
+    let vp = h.state.viewport;
+    h.drag(vp.center(), vp.center() + Vec2::new(50.0, 20.0));
+    let c1 = h.state.scene.camera.clone();
+    assert!(
+        (c1.yaw_deg - (c0.yaw_deg - 50.0 * 0.4).rem_euclid(360.0)).abs() < 1e-3,
+        "{c1:?}"
+    );
+    assert!((c1.pitch_deg - (c0.pitch_deg + 8.0)).abs() < 1e-3);
+    h.frame(vec![
+        Event::PointerMoved(vp.center()),
+        Event::MouseWheel {
+            unit: egui::MouseWheelUnit::Line,
+            delta: Vec2::new(0.0, 3.0),
+            phase: egui::TouchPhase::Move,
+            modifiers: Modifiers::NONE,
+        },
+    ]);
+    for _ in 0..30 {
+        h.frame(vec![]);
+    }
+    assert!(h.state.scene.camera.distance < c1.distance, "wheel up moves closer");
+    h.key(Key::R, Modifiers::NONE);
+    assert_eq!(h.state.scene.camera, c0, "R resets the camera");
+}
+
+#[test]
+fn checkbox_screenshot_and_save_shortcuts() {
+    let mut h = Harness::with_screen(Vec2::new(1024.0, 2000.0));
+    let on = h.state.scene.quality.intensity_correction;
+    h.click(
+        h.rect("caustic correction").left_center() + Vec2::new(8.0, 0.0),
+        PointerButton::Primary,
+    );
+    assert_eq!(h.state.scene.quality.intensity_correction, !on);
+    let a = h.click(h.rect("screenshot").center(), PointerButton::Primary);
+    assert!(
+        matches!(
+            a.as_slice(),
+            [Action::Screenshot {
+                width: 1024,
+                height: 768,
+                ..
+            }]
+        ),
+        "{a:?}"
+    );
+    assert!(matches!(
+        h.key(Key::P, Modifiers::NONE).as_slice(),
+        [Action::Screenshot { .. }]
+    ));
+    assert!(matches!(
+        h.key(Key::S, Modifiers::COMMAND).as_slice(),
+        [Action::SaveScene(_)]
+    ));
+    h.key(Key::F1, Modifiers::NONE);
+    assert!(h.state.show_help);
+    assert_eq!(h.key(Key::Escape, Modifiers::NONE), vec![Action::Quit]);
+}
+
+#[test]
+fn histogram_is_log_scaled() {
+    let mut values = vec![0.0f32; 1000];
+    values.push(1.0);
+    let h = super::panel::histogram(&values, [0.0, 1.0]);
+    assert_eq!(h.len(), 64);
+    assert_eq!(h[0], 1.0);
+    // One sample against a thousand: ln 2 / ln 1001 ≈ 0.1, far above the linear 0.001.
+    assert!((h[63] - 2f32.ln() / 1001f32.ln()).abs() < 1e-6);
+    assert!(h[1..63].iter().all(|v| *v == 0.0));
+}

@@ -1,0 +1,502 @@
+//! The winit window: input into egui, progressive frames from the render thread, painting
+//! (render image + panel) into a softbuffer surface, screenshots and exit-after-idle.
+
+use std::num::NonZeroU32;
+use std::path::PathBuf;
+use std::rc::Rc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Instant;
+
+use anyhow::{anyhow, Result};
+use winit::application::ApplicationHandler;
+use winit::dpi::PhysicalSize;
+use winit::event::WindowEvent;
+use winit::event_loop::{ActiveEventLoop, ControlFlow};
+use winit::window::{Window, WindowId};
+
+use super::panel::{Action, ViewState};
+use super::progressive::{Progressive, FULL, LEVELS};
+use super::raster::{Painter, Target};
+use super::worker::{Reply, Request, Worker};
+use crate::render::{linear_to_srgb, RenderedImage};
+use crate::scene::Scene;
+
+/// Wakes the event loop when the render thread has a reply.
+#[derive(Debug)]
+pub struct Wake;
+
+/// What the window shows of the render: the last accepted frame as `0x00RRGGBB`.
+struct Shown {
+    width: u32,
+    height: u32,
+    pixels: Vec<u32>,
+}
+
+/// The same conversion as `RenderedImage::to_srgb8`, packed for the surface.
+fn pack(image: &RenderedImage) -> Shown {
+    let q = |c: f32| (linear_to_srgb(c) * 255.0 + 0.5) as u32;
+    Shown {
+        width: image.width,
+        height: image.height,
+        pixels: image
+            .pixels
+            .iter()
+            .map(|p| (q(p[0]) << 16) | (q(p[1]) << 8) | q(p[2]))
+            .collect(),
+    }
+}
+
+struct Surface {
+    window: Rc<Window>,
+    surface: softbuffer::Surface<Rc<Window>, Rc<Window>>,
+    egui: egui_winit::State,
+}
+
+pub struct Options {
+    pub size: (u32, u32),
+    pub exit_after_idle: bool,
+    /// Written once the full-quality frame is on screen: what the window shows, read back.
+    pub screenshot: Option<PathBuf>,
+    /// Saved once the full-quality frame is on screen.
+    pub save_scene: Option<PathBuf>,
+    /// Print every frame shown (level, size, planes, render time) and the paint time.
+    pub frame_log: bool,
+    /// Scripted interaction: after each of the first N frames, orbit by 5° as a drag would.
+    pub orbit_frames: u32,
+    /// Scripted interaction: once settled, resize the window to this size and settle again.
+    pub resize_after_idle: Option<(u32, u32)>,
+}
+
+pub struct App {
+    pub state: ViewState,
+    opts: Options,
+    worker: Worker,
+    progressive: Progressive,
+    egui: egui::Context,
+    painter: Painter,
+    surface: Option<Surface>,
+    shown: Option<Shown>,
+    /// What the current version looks like, to detect edits.
+    last_scene: Scene,
+    last_render_size: (u32, u32),
+    cancel: Arc<AtomicBool>,
+    /// The viewport has no pixels (minimised): nothing to render, so nothing to wait for.
+    no_viewport: bool,
+    pub error: Option<anyhow::Error>,
+    /// The view version whose settled frame was last written (--screenshot, --save-scene).
+    written_version: u64,
+}
+
+impl App {
+    pub fn new(state: ViewState, worker: Worker, opts: Options) -> App {
+        let last_scene = state.scene_for_render();
+        App {
+            state,
+            opts,
+            worker,
+            progressive: Progressive::new(Instant::now()),
+            egui: egui::Context::default(),
+            painter: Painter::default(),
+            surface: None,
+            shown: None,
+            last_scene,
+            last_render_size: (0, 0),
+            cancel: Arc::new(AtomicBool::new(false)),
+            no_viewport: false,
+            error: None,
+            written_version: 0,
+        }
+    }
+
+    /// Stops the render thread (destroying its GPU objects) and closes the window.
+    pub fn shutdown(&mut self) {
+        self.cancel.store(true, Ordering::Relaxed);
+        self.worker.stop();
+        self.surface = None;
+    }
+
+    fn fail(&mut self, event_loop: &ActiveEventLoop, e: anyhow::Error) {
+        self.error.get_or_insert(e);
+        event_loop.exit();
+    }
+
+    fn viewport_pixels(&self, ppp: f32) -> [u32; 4] {
+        let r = self.state.viewport;
+        if !r.is_positive() {
+            return [0; 4];
+        }
+        let x0 = (r.min.x * ppp).round().max(0.0) as u32;
+        let y0 = (r.min.y * ppp).round().max(0.0) as u32;
+        let x1 = (r.max.x * ppp).round().max(0.0) as u32;
+        let y1 = (r.max.y * ppp).round().max(0.0) as u32;
+        [x0, y0, x1.saturating_sub(x0), y1.saturating_sub(y0)]
+    }
+
+    fn take_replies(&mut self) {
+        while let Ok(reply) = self.worker.replies.try_recv() {
+            match reply {
+                Reply::Frame {
+                    job,
+                    image,
+                    stats,
+                    duration_ms,
+                } => {
+                    if self.progressive.finished(job, true) {
+                        self.shown = Some(pack(&image));
+                        if self.opts.frame_log {
+                            eprintln!(
+                                "frame: {:<11} {}x{} {:>4} planes {:>9.1} ms",
+                                LEVELS[job.level].name, image.width, image.height, stats.planes, duration_ms
+                            );
+                        }
+                        if self.opts.orbit_frames > 0 {
+                            self.opts.orbit_frames -= 1;
+                            let step_px = 5.0 / super::controls::ORBIT_DEG_PER_PIXEL;
+                            super::controls::orbit(&mut self.state.scene.camera, step_px, 0.0);
+                        }
+                        let s = &mut self.state.status;
+                        s.level = LEVELS[job.level].name;
+                        s.frame_ms = duration_ms;
+                        s.planes = stats.planes;
+                        s.render_size = (image.width, image.height);
+                    }
+                }
+                Reply::Cancelled { job } => {
+                    self.progressive.finished(job, false);
+                }
+                Reply::Failed { job, message } => {
+                    if let Some(job) = job {
+                        self.progressive.finished(job, false);
+                    }
+                    self.state.status.message = message.clone();
+                    // Without a picture the exit-after-idle run can never settle: stop.
+                    if self.opts.exit_after_idle {
+                        self.error.get_or_insert(anyhow!("render failed: {message}"));
+                    }
+                }
+                Reply::Saved { path, result } => {
+                    self.state.status.message = match result {
+                        Ok(()) => format!("wrote {}", path.display()),
+                        Err(e) => format!("screenshot failed: {e}"),
+                    };
+                }
+            }
+        }
+    }
+
+    fn schedule(&mut self, render_size: (u32, u32)) {
+        let now = Instant::now();
+        let scene = self.state.scene_for_render();
+        if scene != self.last_scene || render_size != self.last_render_size {
+            if let Err(e) = scene.validate() {
+                self.state.status.message = e.to_string();
+                return;
+            }
+            self.last_scene = scene;
+            self.last_render_size = render_size;
+            if self.progressive.changed(now) {
+                self.cancel.store(true, Ordering::Relaxed);
+            }
+        }
+        self.no_viewport = render_size.0 == 0 || render_size.1 == 0;
+        if self.no_viewport {
+            return;
+        }
+        if let Some(job) = self.progressive.next(now) {
+            let level = LEVELS[job.level];
+            let mut scene = self.last_scene.clone();
+            scene.quality.sample_distance = (scene.quality.sample_distance * level.step_factor).min(16.0);
+            let scale = if job.level == FULL { 1.0 } else { level.scale };
+            let (w, h) = (
+                ((render_size.0 as f32 * scale).round() as u32).max(1),
+                ((render_size.1 as f32 * scale).round() as u32).max(1),
+            );
+            self.cancel = Arc::new(AtomicBool::new(false));
+            self.worker.send(Request::Frame {
+                job,
+                scene: Box::new(scene),
+                width: w,
+                height: h,
+                cancel: self.cancel.clone(),
+            });
+        }
+    }
+
+    fn act(&mut self, event_loop: &ActiveEventLoop, action: Action) {
+        match action {
+            Action::Quit => event_loop.exit(),
+            Action::SaveScene(path) => {
+                self.state.status.message = match super::save::save_scene(&self.state.scene_for_render(), &path) {
+                    Ok(()) => format!("saved {}", path.display()),
+                    Err(e) => format!("cannot save {}: {e:#}", path.display()),
+                };
+            }
+            Action::Screenshot { path, width, height } => {
+                self.state.status.message = format!("rendering {}×{} to {} ...", width, height, path.display());
+                self.worker.send(Request::Screenshot {
+                    scene: Box::new(self.state.scene_for_render()),
+                    width,
+                    height,
+                    path,
+                });
+            }
+        }
+    }
+
+    fn redraw(&mut self, event_loop: &ActiveEventLoop) {
+        let start = Instant::now();
+        self.take_replies();
+        let Some(s) = self.surface.as_mut() else { return };
+        let input = s.egui.take_egui_input(&s.window);
+        let state = &mut self.state;
+        let mut actions = Vec::new();
+        let output = self.egui.run_ui(input, |ui| actions = state.ui(ui));
+        s.egui.handle_platform_output(&s.window, output.platform_output);
+        let ppp = output.pixels_per_point;
+        let size = s.window.inner_size();
+        for a in actions {
+            self.act(event_loop, a);
+        }
+        let vp = self.viewport_pixels(ppp);
+        let scale = self.state.render_scale.clamp(0.05, 1.0);
+        let render_size = (
+            ((vp[2] as f32) * scale).round() as u32,
+            ((vp[3] as f32) * scale).round() as u32,
+        );
+        self.schedule(render_size);
+
+        self.painter.update_textures(&output.textures_delta);
+        let primitives = self.egui.tessellate(output.shapes, ppp);
+        let (Some(w), Some(h)) = (NonZeroU32::new(size.width), NonZeroU32::new(size.height)) else {
+            // Minimised: nothing to paint.
+            self.painter.free_textures(&output.textures_delta);
+            return;
+        };
+        let Some(s) = self.surface.as_mut() else { return };
+        let result = (|| -> Result<(), softbuffer::SoftBufferError> {
+            s.surface.resize(w, h)?;
+            let mut buffer = s.surface.buffer_mut()?;
+            let (bw, bh) = (size.width as usize, size.height as usize);
+            buffer.fill(0x00_10_10_10);
+            if let Some(img) = &self.shown {
+                blit(&mut buffer, bw, bh, img, vp);
+            }
+            let mut target = Target {
+                pixels: &mut buffer,
+                width: bw,
+                height: bh,
+            };
+            self.painter.paint(&mut target, &primitives, ppp);
+            buffer.present()
+        })();
+        self.painter.free_textures(&output.textures_delta);
+        if let Err(e) = result {
+            self.fail(event_loop, anyhow!("cannot present the window: {e}"));
+            return;
+        }
+        if self.opts.frame_log {
+            let ms = start.elapsed().as_secs_f64() * 1e3;
+            eprintln!(
+                "paint: {}x{} window, panel and image {ms:.1} ms",
+                size.width, size.height
+            );
+        }
+        // Each time the view settles to a new full frame: outputs are (re)written.
+        if self.progressive.settled() && self.written_version != self.progressive.version() {
+            if let Some((w, h)) = self.opts.resize_after_idle.take() {
+                if let Some(s) = &self.surface {
+                    // Applied by the window system; the Resized event that follows brings a
+                    // new viewport size and so a new progressive sequence.
+                    let _ = s.window.request_inner_size(PhysicalSize::new(w, h));
+                    s.window.request_redraw();
+                }
+                return;
+            }
+            self.written_version = self.progressive.version();
+            if let Some(path) = self.opts.screenshot.clone() {
+                if let Err(e) = self.capture(&path) {
+                    self.fail(event_loop, e);
+                    return;
+                }
+            }
+            if let Some(path) = self.opts.save_scene.clone() {
+                // The scene of the frame on screen, not of edits made since.
+                if let Err(e) = super::save::save_scene(&self.last_scene, &path) {
+                    self.fail(event_loop, e);
+                    return;
+                }
+                eprintln!("wrote {}", path.display());
+            }
+            if self.opts.exit_after_idle {
+                event_loop.exit();
+            }
+        }
+        if self.error.is_some() {
+            event_loop.exit();
+        }
+        let repaint = output
+            .viewport_output
+            .get(&egui::ViewportId::ROOT)
+            .map(|v| v.repaint_delay);
+        if let Some(s) = &self.surface {
+            if repaint.is_some_and(|d| d.is_zero()) {
+                s.window.request_redraw();
+            }
+        }
+    }
+
+    /// Reads back what the window shows (the X server's copy of the surface, panel included)
+    /// and writes it as a PNG.
+    fn capture(&mut self, path: &std::path::Path) -> Result<()> {
+        let s = self.surface.as_mut().ok_or_else(|| anyhow!("no window"))?;
+        let size = s.window.inner_size();
+        let pixels = s
+            .surface
+            .fetch()
+            .map_err(|e| anyhow!("cannot read back the window contents: {e}"))?;
+        let (ww, wh) = (size.width as usize, size.height as usize);
+        if pixels.len() != ww * wh {
+            return Err(anyhow!(
+                "window read-back has {} pixels, expected {ww}×{wh}",
+                pixels.len()
+            ));
+        }
+        let rgb: Vec<u8> = pixels
+            .iter()
+            .flat_map(|p| [(p >> 16) as u8, (p >> 8) as u8, *p as u8])
+            .collect();
+        let img = image::RgbImage::from_raw(size.width, size.height, rgb).ok_or_else(|| anyhow!("bad capture size"))?;
+        let tmp = path.with_extension("capture.tmp.png");
+        img.save(&tmp)?;
+        std::fs::rename(&tmp, path)?;
+        eprintln!("wrote {} ({ww}×{wh}, window capture)", path.display());
+        Ok(())
+    }
+}
+
+/// Copies `img` into the viewport `vp` = [x, y, w, h] of the buffer: 1:1 when the sizes
+/// match (the full-quality frame, pixel for pixel), else bilinearly scaled (coarse levels).
+fn blit(buffer: &mut [u32], bw: usize, bh: usize, img: &Shown, vp: [u32; 4]) {
+    let [x0, y0, w, h] = vp.map(|v| v as usize);
+    if w == 0 || h == 0 || img.width == 0 || img.height == 0 {
+        return;
+    }
+    let (iw, ih) = (img.width as usize, img.height as usize);
+    let (x1, y1) = ((x0 + w).min(bw), (y0 + h).min(bh));
+    if (iw, ih) == (w, h) {
+        for y in y0..y1 {
+            let src = &img.pixels[(y - y0) * iw..(y - y0) * iw + (x1 - x0)];
+            buffer[y * bw + x0..y * bw + x1].copy_from_slice(src);
+        }
+        return;
+    }
+    // Texel centres: pixel centre (x + 0.5) maps to (x + 0.5) * iw / w - 0.5 in the image.
+    let coord = |p: usize, n_out: usize, n_in: usize| {
+        let f = ((p as f32 + 0.5) * n_in as f32 / n_out as f32 - 0.5).clamp(0.0, (n_in - 1) as f32);
+        let i = (f as usize).min(n_in.saturating_sub(2));
+        (i, (i + 1).min(n_in - 1), f - i as f32)
+    };
+    let xs: Vec<_> = (x0..x1).map(|x| coord(x - x0, w, iw)).collect();
+    let ch = |p: u32, k: u32| ((p >> k) & 255) as f32;
+    for y in y0..y1 {
+        let (ya, yb, ty) = coord(y - y0, h, ih);
+        let (ra, rb) = (&img.pixels[ya * iw..(ya + 1) * iw], &img.pixels[yb * iw..(yb + 1) * iw]);
+        for (x, &(xa, xb, tx)) in (x0..x1).zip(&xs) {
+            let mut out = 0u32;
+            for k in [16, 8, 0] {
+                let top = ch(ra[xa], k) * (1.0 - tx) + ch(ra[xb], k) * tx;
+                let bottom = ch(rb[xa], k) * (1.0 - tx) + ch(rb[xb], k) * tx;
+                out |= ((top * (1.0 - ty) + bottom * ty + 0.5) as u32).min(255) << k;
+            }
+            buffer[y * bw + x] = out;
+        }
+    }
+}
+
+impl ApplicationHandler<Wake> for App {
+    fn resumed(&mut self, event_loop: &ActiveEventLoop) {
+        if self.surface.is_some() {
+            return;
+        }
+        let attrs = Window::default_attributes()
+            .with_title("caustica")
+            .with_inner_size(PhysicalSize::new(self.opts.size.0, self.opts.size.1));
+        let result = (|| -> Result<Surface> {
+            let window = Rc::new(event_loop.create_window(attrs)?);
+            let context = softbuffer::Context::new(window.clone()).map_err(|e| anyhow!("{e}"))?;
+            let surface = softbuffer::Surface::new(&context, window.clone()).map_err(|e| anyhow!("{e}"))?;
+            let egui = egui_winit::State::new(
+                self.egui.clone(),
+                egui::ViewportId::ROOT,
+                &window,
+                Some(window.scale_factor() as f32),
+                None,
+                None,
+            );
+            Ok(Surface { window, surface, egui })
+        })();
+        match result {
+            Ok(s) => {
+                s.window.request_redraw();
+                self.surface = Some(s);
+            }
+            Err(e) => self.fail(event_loop, e.context("cannot open the window")),
+        }
+    }
+
+    fn window_event(&mut self, event_loop: &ActiveEventLoop, _id: WindowId, event: WindowEvent) {
+        let Some(s) = self.surface.as_mut() else { return };
+        let response = s.egui.on_window_event(&s.window, &event);
+        match event {
+            WindowEvent::CloseRequested | WindowEvent::Destroyed => event_loop.exit(),
+            WindowEvent::RedrawRequested => self.redraw(event_loop),
+            _ => {
+                if response.repaint {
+                    s.window.request_redraw();
+                }
+            }
+        }
+    }
+
+    fn user_event(&mut self, _event_loop: &ActiveEventLoop, _event: Wake) {
+        if let Some(s) = &self.surface {
+            s.window.request_redraw();
+        }
+    }
+
+    fn about_to_wait(&mut self, event_loop: &ActiveEventLoop) {
+        match self.progressive.wake_at().filter(|_| !self.no_viewport) {
+            Some(t) if t <= Instant::now() => {
+                if let Some(s) = &self.surface {
+                    s.window.request_redraw();
+                }
+                event_loop.set_control_flow(ControlFlow::Wait);
+            }
+            Some(t) => event_loop.set_control_flow(ControlFlow::WaitUntil(t)),
+            None => event_loop.set_control_flow(ControlFlow::Wait),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn blit_copies_exactly_at_full_size_and_interpolates_when_scaled() {
+        let img = Shown {
+            width: 2,
+            height: 1,
+            pixels: vec![0x00_00_00_00, 0x00_FF_FF_FF],
+        };
+        let mut buf = vec![7u32; 4 * 3];
+        blit(&mut buf, 4, 3, &img, [1, 1, 2, 1]);
+        assert_eq!(buf, vec![7, 7, 7, 7, 7, 0, 0xFF_FF_FF, 7, 7, 7, 7, 7]);
+        let mut buf = vec![7u32; 4];
+        blit(&mut buf, 4, 1, &img, [0, 0, 4, 1]);
+        // Pixel centres 0.5..3.5 map to image x -0.25, 0.25, 0.75, 1.25 (clamped to [0, 1]).
+        let grey = |v: u32| (v << 16) | (v << 8) | v;
+        assert_eq!(buf, vec![0, grey(64), grey(191), grey(255)]);
+    }
+}

@@ -1,0 +1,271 @@
+//! The render thread: owns the [`Renderer`] and the loaded volume, renders what the window
+//! asks for and sends the images back, so the window never waits for the GPU.
+//!
+//! The Vulkan queue is only ever used from this thread; the window thread only sends requests
+//! (latest wins) and raises a cancel flag when a running refinement became outdated.
+
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{channel, Receiver, Sender};
+use std::sync::Arc;
+use std::thread::JoinHandle;
+use std::time::Instant;
+
+use crate::render::{EnvMap, PreparedScene, RenderError, RenderRequest, RenderStats, RenderedImage, Renderer};
+use crate::scene::Scene;
+
+use super::progressive::Job;
+
+/// What the window asks for.
+pub enum Request {
+    /// A frame of the view; `scene` already has the level's sample distance.
+    Frame {
+        job: Job,
+        scene: Box<Scene>,
+        width: u32,
+        height: u32,
+        cancel: Arc<AtomicBool>,
+    },
+    /// A full-quality offscreen render written to `path` (PNG or EXR).
+    Screenshot {
+        scene: Box<Scene>,
+        width: u32,
+        height: u32,
+        path: PathBuf,
+    },
+}
+
+/// What the render thread answers.
+pub enum Reply {
+    Frame {
+        job: Job,
+        image: RenderedImage,
+        stats: RenderStats,
+        duration_ms: f64,
+    },
+    Cancelled {
+        job: Job,
+    },
+    Failed {
+        job: Option<Job>,
+        message: String,
+    },
+    Saved {
+        path: PathBuf,
+        result: Result<(), String>,
+    },
+}
+
+pub struct Worker {
+    requests: Option<Sender<Request>>,
+    pub replies: Receiver<Reply>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl Worker {
+    /// Starts the thread; `wake` is called after every reply (to wake the event loop).
+    pub fn start(renderer: Renderer, prepared: PreparedScene, wake: impl Fn() + Send + 'static) -> Worker {
+        let (req_tx, req_rx) = channel::<Request>();
+        let (rep_tx, rep_rx) = channel::<Reply>();
+        let thread = std::thread::Builder::new()
+            .name("caustica render".into())
+            .spawn(move || run(renderer, prepared, req_rx, rep_tx, wake))
+            .ok();
+        Worker {
+            requests: Some(req_tx),
+            replies: rep_rx,
+            thread,
+        }
+    }
+
+    pub fn send(&self, request: Request) {
+        if let Some(tx) = &self.requests {
+            let _ = tx.send(request);
+        }
+    }
+
+    /// Stops the thread after its current render and waits for it: the renderer and every
+    /// GPU object it holds are destroyed before this returns.
+    pub fn stop(&mut self) {
+        self.requests.take();
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+impl Drop for Worker {
+    fn drop(&mut self) {
+        self.stop();
+    }
+}
+
+fn run(
+    mut renderer: Renderer,
+    mut prepared: PreparedScene,
+    requests: Receiver<Request>,
+    replies: Sender<Reply>,
+    wake: impl Fn(),
+) {
+    let send = |r: Reply| {
+        let _ = replies.send(r);
+        wake();
+    };
+    while let Ok(first) = requests.recv() {
+        // Screenshots are all kept, in order; of the frames only the newest matters.
+        let mut frame = None;
+        for request in std::iter::once(first).chain(requests.try_iter()) {
+            match request {
+                Request::Frame { .. } => {
+                    if let Some(Request::Frame { job, .. }) = frame.replace(request) {
+                        send(Reply::Cancelled { job });
+                    }
+                }
+                screenshot => handle(&mut renderer, &mut prepared, screenshot, &send),
+            }
+        }
+        if let Some(f) = frame {
+            handle(&mut renderer, &mut prepared, f, &send);
+        }
+    }
+}
+
+fn set_scene(prepared: &mut PreparedScene, scene: Scene) -> Result<(), RenderError> {
+    if scene.environment != prepared.scene.environment {
+        prepared.env = EnvMap::for_scene(&scene.environment)?;
+    }
+    prepared.tf = scene.transfer_functions()?;
+    prepared.scene = scene;
+    Ok(())
+}
+
+fn handle(renderer: &mut Renderer, prepared: &mut PreparedScene, request: Request, send: &dyn Fn(Reply)) {
+    match request {
+        Request::Frame {
+            job,
+            scene,
+            width,
+            height,
+            cancel,
+        } => {
+            if cancel.load(Ordering::Relaxed) {
+                send(Reply::Cancelled { job });
+                return;
+            }
+            let start = Instant::now();
+            let result = set_scene(prepared, *scene).and_then(|()| {
+                let mut req = RenderRequest::new(width, height);
+                req.cancel = Some(cancel);
+                renderer.render(prepared, &req)
+            });
+            send(match result {
+                Ok(out) => Reply::Frame {
+                    job,
+                    image: out.image,
+                    stats: out.stats,
+                    duration_ms: start.elapsed().as_secs_f64() * 1e3,
+                },
+                Err(RenderError::Cancelled) => Reply::Cancelled { job },
+                Err(e) => Reply::Failed {
+                    job: Some(job),
+                    message: e.to_string(),
+                },
+            });
+        }
+        Request::Screenshot {
+            scene,
+            width,
+            height,
+            path,
+        } => {
+            let result = set_scene(prepared, *scene)
+                .and_then(|()| renderer.render(prepared, &RenderRequest::new(width, height)))
+                .map_err(|e| e.to_string())
+                .and_then(|out| super::save::save_image(&out.image, &path).map_err(|e| format!("{e:#}")));
+            send(Reply::Saved { path, result });
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gpu::{Context, ContextDesc, DeviceSelector};
+    use crate::scene::{builtin, VolumeSource};
+    use std::time::Duration;
+
+    fn small_scene() -> Scene {
+        let mut scene = builtin("ball-lens").unwrap().scene;
+        scene.volume = VolumeSource::Builtin {
+            name: "ball-lens".into(),
+            resolution: 32,
+        };
+        scene
+    }
+
+    /// The screenshot path renders offscreen at the requested size with the same renderer,
+    /// PNG and EXR; a frame whose cancel flag is already set is answered as cancelled.
+    #[test]
+    fn screenshots_match_a_direct_render_and_cancel_is_honoured() {
+        let ctx = Context::new(&ContextDesc::from_env(DeviceSelector::Auto)).expect("Vulkan device");
+        let scene = small_scene();
+        let prepared = PreparedScene::load(&scene).unwrap();
+        let mut direct = Renderer::new(ctx.clone()).unwrap();
+        let expected = direct.render(&prepared, &RenderRequest::new(40, 30)).unwrap().image;
+        drop(direct);
+
+        let worker_prepared = PreparedScene::load(&scene).unwrap();
+        let mut worker = Worker::start(Renderer::new(ctx.clone()).unwrap(), worker_prepared, || {});
+        let dir = std::env::temp_dir().join(format!("caustica-worker-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let cancelled = Job { version: 7, level: 2 };
+        worker.send(Request::Frame {
+            job: cancelled,
+            scene: Box::new(scene.clone()),
+            width: 40,
+            height: 30,
+            cancel: Arc::new(AtomicBool::new(true)),
+        });
+        for ext in ["png", "exr"] {
+            worker.send(Request::Screenshot {
+                scene: Box::new(scene.clone()),
+                width: 40,
+                height: 30,
+                path: dir.join(format!("shot.{ext}")),
+            });
+        }
+        let (mut saved, mut was_cancelled) = (0, false);
+        while saved < 2 || !was_cancelled {
+            match worker.replies.recv_timeout(Duration::from_secs(120)).expect("a reply") {
+                Reply::Saved { result, .. } => {
+                    result.unwrap();
+                    saved += 1;
+                }
+                Reply::Cancelled { job } => was_cancelled = job == cancelled,
+                Reply::Frame { .. } => panic!("a cancelled frame was rendered"),
+                Reply::Failed { message, .. } => panic!("{message}"),
+            }
+        }
+        worker.stop();
+        assert!(was_cancelled);
+        let png = image::open(dir.join("shot.png")).unwrap().to_rgba8();
+        assert_eq!((png.width(), png.height()), (40, 30));
+        assert_eq!(
+            png.into_raw(),
+            expected.to_srgb8(),
+            "PNG = the direct render, byte for byte"
+        );
+        let exr = exr::prelude::read_first_rgba_layer_from_file(
+            dir.join("shot.exr"),
+            |res, _| vec![[0f32; 4]; res.width() * res.height()],
+            |px: &mut Vec<[f32; 4]>, pos, (r, g, b, a): (f32, f32, f32, f32)| px[pos.y() * 40 + pos.x()] = [r, g, b, a],
+        )
+        .unwrap();
+        assert_eq!(
+            exr.layer_data.channel_data.pixels, expected.pixels,
+            "EXR keeps the linear floats"
+        );
+        assert_eq!(ctx.validation_errors(), 0, "{:?}", ctx.validation_messages());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

@@ -1,0 +1,69 @@
+//! The renderer keeps its scene textures between renders: reused ones must give the same
+//! image as a fresh upload, every input of the textures must invalidate them, and a render
+//! cancelled before its upload ran must not leave empty textures behind.
+
+mod common;
+
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+
+use caustica::render::{PreparedScene, RenderError, RenderRequest};
+use caustica::scene::{builtin, VolumeSource};
+use common::Gpu;
+
+type Edit = Box<dyn Fn(&mut PreparedScene)>;
+
+fn prepared() -> PreparedScene {
+    let mut scene = builtin("ball-lens").unwrap().scene;
+    scene.volume = VolumeSource::Builtin {
+        name: "ball-lens".into(),
+        resolution: 32,
+    };
+    PreparedScene::load(&scene).unwrap()
+}
+
+/// A fresh renderer (no cache) as the reference.
+fn fresh(p: &PreparedScene) -> Vec<[f32; 4]> {
+    Gpu::new().render(p, &RenderRequest::new(48, 40)).image.pixels
+}
+
+#[test]
+fn reused_textures_match_a_fresh_upload_and_edits_invalidate_them() {
+    let mut gpu = Gpu::new();
+    let req = RenderRequest::new(48, 40);
+    let mut p = prepared();
+    let first = gpu.render(&p, &req).image.pixels;
+    // Camera and light do not touch the textures: the second render reuses them.
+    p.scene.camera.yaw_deg += 30.0;
+    p.scene.light.polar_deg = 50.0;
+    assert_eq!(gpu.render(&p, &req).image.pixels, fresh(&p));
+
+    // Each texture input, changed, must give the fresh renderer's image, not the cached one.
+    let mut opaque = p.tf.clone();
+    opaque.opacity.points = vec![[0.0, 0.0], [0.3, 0.8]];
+    let edits: Vec<Edit> = vec![
+        Box::new(move |p| p.tf = opaque.clone()),
+        Box::new(|p| p.scene.quality.sample_distance = 2.0),
+        Box::new(|p| p.scene.window = Some([0.0, 0.5])),
+    ];
+    for edit in edits {
+        let before = gpu.render(&p, &req).image.pixels;
+        edit(&mut p);
+        let after = gpu.render(&p, &req).image.pixels;
+        assert_ne!(after, before, "the edit changes the image");
+        assert_eq!(after, fresh(&p));
+    }
+    assert_ne!(first, gpu.render(&p, &req).image.pixels);
+}
+
+#[test]
+fn a_render_cancelled_before_its_upload_does_not_poison_the_cache() {
+    let mut gpu = Gpu::new();
+    let p = prepared();
+    let mut req = RenderRequest::new(48, 40);
+    req.cancel = Some(Arc::new(AtomicBool::new(true)));
+    assert!(matches!(gpu.renderer.render(&p, &req), Err(RenderError::Cancelled)));
+    let after = gpu.render(&p, &RenderRequest::new(48, 40)).image.pixels;
+    assert_eq!(after, fresh(&p));
+    gpu.assert_clean();
+}
