@@ -1,0 +1,655 @@
+//! DICOM series from a directory: every Part-10 file of one series, sorted by position along
+//! the slice normal, rescaled (slope/intercept) and spaced from the slice positions. Tilted
+//! (gantry-tilt) acquisitions, whose slices are shifted in-plane along the stack, are
+//! resampled onto a straight grid. Uncompressed transfer syntaxes only (implicit and
+//! explicit VR little endian, explicit VR big endian); a small reader of exactly the
+//! elements needed, so malformed files are bounded by one slice and easy to fuzz.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use glam::DVec3;
+
+use super::meta::{Format, Loaded, VolumeMeta};
+use super::read::{data_error, io_error};
+use super::{checked_voxel_count, decode::decode_samples, Endian, ScalarType, Volume, VolumeError};
+
+/// Largest single DICOM file read into memory.
+const MAX_FILE_BYTES: u64 = 1 << 30;
+/// Relative spread of slice gaps above which a warning is logged (irregular stacks).
+const GAP_TOLERANCE: f64 = 0.01;
+
+fn header_error(path: &Path, message: impl Into<String>) -> VolumeError {
+    VolumeError::Header {
+        path: path.to_path_buf(),
+        line: None,
+        message: format!("DICOM: {}", message.into()),
+    }
+}
+
+/// The elements of one slice that building a volume needs.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Slice {
+    pub path: PathBuf,
+    pub rows: usize,
+    pub columns: usize,
+    pub bits_allocated: u16,
+    pub signed: bool,
+    pub samples_per_pixel: u16,
+    pub frames: usize,
+    pub pixel_spacing: Option<[f64; 2]>,
+    pub position: Option<DVec3>,
+    pub orientation: Option<[DVec3; 2]>,
+    pub slope: f64,
+    pub intercept: f64,
+    pub modality: String,
+    pub series: String,
+    pub instance: i64,
+    pub slice_thickness: Option<f64>,
+    pub endian: Endian,
+    pub pixels: Vec<u8>,
+}
+
+const SYNTAX_IMPLICIT_LE: &str = "1.2.840.10008.1.2";
+const SYNTAX_EXPLICIT_LE: &str = "1.2.840.10008.1.2.1";
+const SYNTAX_EXPLICIT_BE: &str = "1.2.840.10008.1.2.2";
+
+struct Cursor<'a> {
+    bytes: &'a [u8],
+    at: usize,
+    explicit: bool,
+    endian: Endian,
+}
+
+impl Cursor<'_> {
+    fn u16(&mut self) -> Option<u16> {
+        let b: [u8; 2] = self.bytes.get(self.at..self.at + 2)?.try_into().ok()?;
+        self.at += 2;
+        Some(if self.endian == Endian::Big {
+            u16::from_be_bytes(b)
+        } else {
+            u16::from_le_bytes(b)
+        })
+    }
+    fn u32(&mut self) -> Option<u32> {
+        let b: [u8; 4] = self.bytes.get(self.at..self.at + 4)?.try_into().ok()?;
+        self.at += 4;
+        Some(if self.endian == Endian::Big {
+            u32::from_be_bytes(b)
+        } else {
+            u32::from_le_bytes(b)
+        })
+    }
+    /// Reads the next element header: (group, element, VR, length); length `None` is undefined.
+    fn element(&mut self) -> Option<(u16, u16, [u8; 2], Option<u32>)> {
+        let group = self.u16()?;
+        let element = self.u16()?;
+        // Item and delimitation tags never carry a VR.
+        if group == 0xFFFE || !self.explicit {
+            let len = self.u32()?;
+            return Some((group, element, *b"UN", (len != u32::MAX).then_some(len)));
+        }
+        let vr: [u8; 2] = self.bytes.get(self.at..self.at + 2)?.try_into().ok()?;
+        self.at += 2;
+        let long = matches!(
+            &vr,
+            b"OB" | b"OD" | b"OF" | b"OL" | b"OV" | b"OW" | b"SQ" | b"SV" | b"UC" | b"UN" | b"UR" | b"UT" | b"UV"
+        );
+        let len = if long {
+            self.at += 2;
+            self.u32()?
+        } else {
+            u32::from(self.u16()?)
+        };
+        Some((group, element, vr, (len != u32::MAX).then_some(len)))
+    }
+    fn take(&mut self, len: u32) -> Option<&[u8]> {
+        let end = self.at.checked_add(len as usize)?;
+        let out = self.bytes.get(self.at..end)?;
+        self.at = end;
+        Some(out)
+    }
+    /// Skips an undefined-length sequence (or item) up to its delimiter; depth bounds nesting.
+    fn skip_undefined(&mut self, depth: usize) -> Option<()> {
+        if depth > 16 {
+            return None;
+        }
+        loop {
+            let (group, element, _, len) = self.element()?;
+            if group == 0xFFFE && (element == 0xE0DD || element == 0xE00D) {
+                return Some(());
+            }
+            match len {
+                Some(len) => {
+                    self.take(len)?;
+                }
+                None => self.skip_undefined(depth + 1)?,
+            }
+        }
+    }
+}
+
+fn text(value: &[u8]) -> String {
+    String::from_utf8_lossy(value)
+        .trim_matches(|c: char| c == '\0' || c.is_whitespace())
+        .to_string()
+}
+
+fn numbers(value: &[u8]) -> Vec<f64> {
+    text(value).split('\\').filter_map(|t| t.trim().parse().ok()).collect()
+}
+
+/// Parses one Part-10 file (preamble, "DICM", meta group, data set up to the pixel data).
+pub(crate) fn parse_slice(bytes: &[u8], path: &Path) -> Result<Slice, VolumeError> {
+    if bytes.len() < 132 || &bytes[128..132] != b"DICM" {
+        return Err(header_error(
+            path,
+            "no 'DICM' marker at byte 128: not a DICOM Part-10 file",
+        ));
+    }
+    let bad = |what: &str| header_error(path, format!("malformed element {what}"));
+    let mut cur = Cursor {
+        bytes,
+        at: 132,
+        explicit: true,
+        endian: Endian::Little,
+    };
+    let mut syntax = String::new();
+    // File meta group: always explicit VR little endian.
+    loop {
+        let save = cur.at;
+        let Some((group, element, _, len)) = cur.element() else {
+            return Err(bad("in the file meta group"));
+        };
+        if group != 0x0002 {
+            cur.at = save;
+            break;
+        }
+        let value = cur
+            .take(len.ok_or_else(|| bad("with undefined length in the meta group"))?)
+            .ok_or_else(|| bad("past the end of the file"))?;
+        if element == 0x0010 {
+            syntax = text(value);
+        }
+    }
+    match syntax.as_str() {
+        SYNTAX_IMPLICIT_LE => cur.explicit = false,
+        SYNTAX_EXPLICIT_LE => {}
+        SYNTAX_EXPLICIT_BE => cur.endian = Endian::Big,
+        other => {
+            return Err(header_error(
+                path,
+                format!("transfer syntax '{other}' is compressed or unknown; only uncompressed syntaxes (implicit/explicit VR little endian, explicit VR big endian) are supported"),
+            ))
+        }
+    }
+    let mut s = Slice {
+        path: path.to_path_buf(),
+        slope: 1.0,
+        frames: 1,
+        samples_per_pixel: 1,
+        endian: cur.endian,
+        ..Slice::default()
+    };
+    loop {
+        let Some((group, element, vr, len)) = cur.element() else {
+            return Err(header_error(path, "file ends before the pixel data"));
+        };
+        let Some(len) = len else {
+            if (group, element) == (0x7FE0, 0x0010) {
+                return Err(header_error(
+                    path,
+                    "encapsulated (compressed) pixel data is not supported",
+                ));
+            }
+            cur.skip_undefined(0)
+                .ok_or_else(|| bad("in an undefined-length sequence"))?;
+            continue;
+        };
+        let value = cur
+            .take(len)
+            .ok_or_else(|| bad(&format!("({group:04X},{element:04X}) past the end of the file")))?;
+        let us = |v: &[u8]| -> u16 {
+            let b = [v.first().copied().unwrap_or(0), v.get(1).copied().unwrap_or(0)];
+            if s.endian == Endian::Big {
+                u16::from_be_bytes(b)
+            } else {
+                u16::from_le_bytes(b)
+            }
+        };
+        let _ = vr;
+        match (group, element) {
+            (0x0008, 0x0060) => s.modality = text(value),
+            (0x0018, 0x0050) => s.slice_thickness = numbers(value).first().copied(),
+            (0x0020, 0x000E) => s.series = text(value),
+            (0x0020, 0x0013) => s.instance = numbers(value).first().map_or(0, |v| *v as i64),
+            (0x0020, 0x0032) => {
+                if let [x, y, z] = numbers(value)[..] {
+                    s.position = Some(DVec3::new(x, y, z));
+                }
+            }
+            (0x0020, 0x0037) => {
+                if let [a, b, c, d, e, f] = numbers(value)[..] {
+                    s.orientation = Some([DVec3::new(a, b, c), DVec3::new(d, e, f)]);
+                }
+            }
+            (0x0028, 0x0002) => s.samples_per_pixel = us(value),
+            (0x0028, 0x0008) => s.frames = numbers(value).first().map_or(1, |v| *v as usize),
+            (0x0028, 0x0010) => s.rows = usize::from(us(value)),
+            (0x0028, 0x0011) => s.columns = usize::from(us(value)),
+            (0x0028, 0x0030) => {
+                if let [r, c] = numbers(value)[..] {
+                    s.pixel_spacing = Some([r, c]);
+                }
+            }
+            (0x0028, 0x0100) => s.bits_allocated = us(value),
+            (0x0028, 0x0103) => s.signed = us(value) == 1,
+            (0x0028, 0x1052) => s.intercept = numbers(value).first().copied().unwrap_or(0.0),
+            (0x0028, 0x1053) => s.slope = numbers(value).first().copied().unwrap_or(1.0),
+            (0x7FE0, 0x0010) => {
+                s.pixels = value.to_vec();
+                break;
+            }
+            _ => {}
+        }
+    }
+    if s.samples_per_pixel != 1 {
+        return Err(header_error(
+            path,
+            format!("{} samples per pixel: only greyscale images load", s.samples_per_pixel),
+        ));
+    }
+    if s.frames != 1 {
+        return Err(header_error(
+            path,
+            format!("{} frames in one file: only single-frame series load", s.frames),
+        ));
+    }
+    if s.rows == 0 || s.columns == 0 {
+        return Err(header_error(path, "missing or zero Rows/Columns"));
+    }
+    let scalar = s.scalar().ok_or_else(|| {
+        header_error(
+            path,
+            format!("BitsAllocated {} is not supported (8, 16, 32)", s.bits_allocated),
+        )
+    })?;
+    let need = s.rows as u64 * s.columns as u64 * scalar.size_bytes() as u64;
+    if (s.pixels.len() as u64) < need {
+        return Err(VolumeError::Truncated {
+            kind: "DICOM pixel data in",
+            path: path.to_path_buf(),
+            expected_bytes: need,
+            actual_bytes: s.pixels.len() as u64,
+            layout: format!("{}×{} of {scalar}", s.columns, s.rows),
+        });
+    }
+    Ok(s)
+}
+
+impl Slice {
+    fn scalar(&self) -> Option<ScalarType> {
+        Some(match (self.bits_allocated, self.signed) {
+            (8, false) => ScalarType::U8,
+            (8, true) => ScalarType::I8,
+            (16, false) => ScalarType::U16,
+            (16, true) => ScalarType::I16,
+            (32, false) => ScalarType::U32,
+            (32, true) => ScalarType::I32,
+            _ => return None,
+        })
+    }
+}
+
+/// Loads the DICOM series in `dir` (the largest series when several are present).
+pub fn load_dicom_dir(dir: &Path) -> Result<Loaded, VolumeError> {
+    let mut entries: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map_err(io_error(dir))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.is_file())
+        .collect();
+    entries.sort();
+    let mut by_series: BTreeMap<String, Vec<Slice>> = BTreeMap::new();
+    let mut skipped = 0usize;
+    for path in entries {
+        let len = std::fs::metadata(&path).map_err(io_error(&path))?.len();
+        if len > MAX_FILE_BYTES {
+            return Err(header_error(&path, format!("file of {len} bytes is larger than 1 GiB")));
+        }
+        let bytes = std::fs::read(&path).map_err(io_error(&path))?;
+        if bytes.get(128..132) != Some(b"DICM") {
+            skipped += 1;
+            continue;
+        }
+        // A broken file in a series is an error: silently dropping a slice would distort the volume.
+        let slice = parse_slice(&bytes, &path)?;
+        by_series.entry(slice.series.clone()).or_default().push(slice);
+    }
+    let series_count = by_series.len();
+    let Some((_, slices)) = by_series.into_iter().max_by_key(|(_, v)| v.len()) else {
+        return Err(header_error(
+            dir,
+            format!("no DICOM files in the directory ({skipped} other files)"),
+        ));
+    };
+    let mut loaded = assemble(slices, dir)?;
+    if series_count > 1 {
+        let note = format!("{series_count} series in the directory; loaded the largest");
+        log::warn!("{}: {note}", dir.display());
+        loaded.meta.notes.push(note);
+    }
+    Ok(loaded)
+}
+
+/// Sorts slices along the normal, checks they form one grid, and builds the volume.
+pub(crate) fn assemble(mut slices: Vec<Slice>, dir: &Path) -> Result<Loaded, VolumeError> {
+    let first = slices.first().ok_or_else(|| header_error(dir, "empty series"))?.clone();
+    let (rows, columns) = (first.rows, first.columns);
+    let dims = [columns, rows, slices.len()];
+    let count = checked_voxel_count(dims)?;
+    for s in &slices {
+        if (s.rows, s.columns, s.bits_allocated, s.signed) != (rows, columns, first.bits_allocated, first.signed) {
+            return Err(header_error(
+                &s.path,
+                format!("slice is {}×{} but the series is {columns}×{rows}", s.columns, s.rows),
+            ));
+        }
+    }
+    let [row_dir, col_dir] = first.orientation.unwrap_or([DVec3::X, DVec3::Y]);
+    let normal = row_dir.cross(col_dir);
+    if !(normal.length() > 0.5) {
+        return Err(header_error(&first.path, "ImageOrientationPatient is degenerate"));
+    }
+    let normal = normal.normalize();
+    let have_positions = slices.iter().all(|s| s.position.is_some());
+    if have_positions {
+        slices.sort_by(|a, b| {
+            let da = a.position.unwrap_or_default().dot(normal);
+            let db = b.position.unwrap_or_default().dot(normal);
+            da.total_cmp(&db)
+        });
+    } else {
+        slices.sort_by_key(|s| s.instance);
+    }
+    let [row_spacing, col_spacing] = first.pixel_spacing.unwrap_or([1.0, 1.0]);
+    let mut meta = VolumeMeta::new(Format::Dicom, first.scalar()).with_modality(&first.modality);
+    let z_spacing = if have_positions && slices.len() > 1 {
+        let depths: Vec<f64> = slices
+            .iter()
+            .map(|s| s.position.unwrap_or_default().dot(normal))
+            .collect();
+        let gaps: Vec<f64> = depths.windows(2).map(|w| w[1] - w[0]).collect();
+        if gaps.iter().any(|g| *g <= 1e-6) {
+            return Err(header_error(
+                dir,
+                "two slices share one position: the series has duplicates",
+            ));
+        }
+        let mean = (depths[depths.len() - 1] - depths[0]) / gaps.len() as f64;
+        if gaps.iter().any(|g| ((g - mean) / mean).abs() > GAP_TOLERANCE) {
+            let note = format!(
+                "slice gaps vary between {:.3} and {:.3}; using their mean {mean:.3}",
+                gaps.iter().copied().fold(f64::INFINITY, f64::min),
+                gaps.iter().copied().fold(0.0, f64::max)
+            );
+            log::warn!("{}: {note}", dir.display());
+            meta.notes.push(note);
+        }
+        mean
+    } else {
+        first.slice_thickness.unwrap_or(1.0)
+    };
+    let scalar = first
+        .scalar()
+        .ok_or_else(|| header_error(&first.path, "unsupported bits"))?;
+    let plane = rows * columns;
+    let mut data = Vec::with_capacity(count);
+    let origin = first.position.unwrap_or_default();
+    let mut max_shift = 0.0f64;
+    let mut rescaled = false;
+    for s in &slices {
+        let mut values = decode_samples(&s.pixels[..plane * scalar.size_bytes()], scalar, s.endian);
+        rescaled |= super::read::rescale(&mut values, s.slope, s.intercept);
+        // In-plane offset of this slice from the stack's axis: non-zero for gantry tilt.
+        let offset = s.position.unwrap_or(origin) - origin;
+        let shift_x = offset.dot(row_dir) / col_spacing;
+        let shift_y = offset.dot(col_dir) / row_spacing;
+        max_shift = max_shift.max(shift_x.abs()).max(shift_y.abs());
+        if shift_x.abs() > 0.01 || shift_y.abs() > 0.01 {
+            values = shift_slice(&values, columns, rows, shift_x, shift_y);
+        }
+        data.extend(values);
+    }
+    if max_shift > 0.01 {
+        let note = format!("tilted acquisition: slices resampled by up to {max_shift:.1} pixels onto a straight grid");
+        meta.notes.push(note);
+    }
+    if rescaled {
+        meta.notes.push("rescale slope/intercept applied".into());
+    }
+    let spacing = [col_spacing as f32, row_spacing as f32, z_spacing as f32];
+    let volume = Volume::new(dims, spacing, data).map_err(|e| match e {
+        VolumeError::InvalidSpacing(s) => data_error(
+            dir,
+            format!("invalid spacing {s:?} from PixelSpacing and slice positions"),
+        ),
+        other => other,
+    })?;
+    Ok(Loaded::new(volume, meta))
+}
+
+/// Moves a slice whose origin lies `shift` pixels from the stack's axis back onto it: samples
+/// at (x − shift_x, y − shift_y), bilinear, with the slice minimum (air) outside.
+fn shift_slice(values: &[f32], w: usize, h: usize, shift_x: f64, shift_y: f64) -> Vec<f32> {
+    let outside = values.iter().copied().fold(f32::INFINITY, f32::min);
+    let at = |x: i64, y: i64| {
+        if x < 0 || y < 0 || x >= w as i64 || y >= h as i64 {
+            outside
+        } else {
+            values[y as usize * w + x as usize]
+        }
+    };
+    let mut out = Vec::with_capacity(values.len());
+    for y in 0..h {
+        for x in 0..w {
+            let sx = x as f64 - shift_x;
+            let sy = y as f64 - shift_y;
+            let (x0, y0) = (sx.floor(), sy.floor());
+            let (fx, fy) = ((sx - x0) as f32, (sy - y0) as f32);
+            let (x0, y0) = (x0 as i64, y0 as i64);
+            let top = at(x0, y0) * (1.0 - fx) + at(x0 + 1, y0) * fx;
+            let bottom = at(x0, y0 + 1) * (1.0 - fx) + at(x0 + 1, y0 + 1) * fx;
+            out.push(top * (1.0 - fy) + bottom * fy);
+        }
+    }
+    out
+}
+
+/// Writes a minimal explicit-VR little-endian CT slice (tests and fuzz seeds).
+#[cfg(test)]
+pub(crate) fn write_slice(
+    rows: u16,
+    cols: u16,
+    position: [f64; 3],
+    orientation: [f64; 6],
+    spacing: [f64; 2],
+    pixels: &[i16],
+    rescale: [f64; 2],
+    series: &str,
+) -> Vec<u8> {
+    fn element(out: &mut Vec<u8>, group: u16, elem: u16, vr: &[u8; 2], value: &[u8]) {
+        let mut value = value.to_vec();
+        if value.len() % 2 == 1 {
+            value.push(if vr == b"UI" || vr == b"OB" { 0 } else { b' ' });
+        }
+        out.extend(group.to_le_bytes());
+        out.extend(elem.to_le_bytes());
+        out.extend(vr);
+        if matches!(vr, b"OB" | b"OW" | b"SQ" | b"UN") {
+            out.extend([0, 0]);
+            out.extend((value.len() as u32).to_le_bytes());
+        } else {
+            out.extend((value.len() as u16).to_le_bytes());
+        }
+        out.extend(value);
+    }
+    let ds = |v: &[f64]| {
+        v.iter()
+            .map(|x| x.to_string())
+            .collect::<Vec<_>>()
+            .join("\\")
+            .into_bytes()
+    };
+    let mut out = vec![0u8; 128];
+    out.extend(b"DICM");
+    element(&mut out, 0x0002, 0x0010, b"UI", SYNTAX_EXPLICIT_LE.as_bytes());
+    element(&mut out, 0x0008, 0x0060, b"CS", b"CT");
+    // An undefined-length sequence the reader must skip.
+    out.extend(0x0008u16.to_le_bytes());
+    out.extend(0x1140u16.to_le_bytes());
+    out.extend(b"SQ\0\0");
+    out.extend(u32::MAX.to_le_bytes());
+    out.extend(0xFFFEu16.to_le_bytes());
+    out.extend(0xE000u16.to_le_bytes());
+    out.extend(u32::MAX.to_le_bytes());
+    element(&mut out, 0x0008, 0x1150, b"UI", b"1.2.3");
+    out.extend(0xFFFEu16.to_le_bytes());
+    out.extend(0xE00Du16.to_le_bytes());
+    out.extend(0u32.to_le_bytes());
+    out.extend(0xFFFEu16.to_le_bytes());
+    out.extend(0xE0DDu16.to_le_bytes());
+    out.extend(0u32.to_le_bytes());
+    element(&mut out, 0x0018, 0x0050, b"DS", b"2");
+    element(&mut out, 0x0020, 0x000E, b"UI", series.as_bytes());
+    element(&mut out, 0x0020, 0x0032, b"DS", &ds(&position));
+    element(&mut out, 0x0020, 0x0037, b"DS", &ds(&orientation));
+    element(&mut out, 0x0028, 0x0002, b"US", &1u16.to_le_bytes());
+    element(&mut out, 0x0028, 0x0010, b"US", &rows.to_le_bytes());
+    element(&mut out, 0x0028, 0x0011, b"US", &cols.to_le_bytes());
+    element(&mut out, 0x0028, 0x0030, b"DS", &ds(&spacing));
+    element(&mut out, 0x0028, 0x0100, b"US", &16u16.to_le_bytes());
+    element(&mut out, 0x0028, 0x0103, b"US", &1u16.to_le_bytes());
+    element(&mut out, 0x0028, 0x1052, b"DS", &ds(&[rescale[1]]));
+    element(&mut out, 0x0028, 0x1053, b"DS", &ds(&[rescale[0]]));
+    let px: Vec<u8> = pixels.iter().flat_map(|v| v.to_le_bytes()).collect();
+    element(&mut out, 0x7FE0, 0x0010, b"OW", &px);
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::meta::Units;
+    use super::super::test_support::ScratchDir;
+    use super::*;
+
+    const AXIAL: [f64; 6] = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0];
+
+    /// Slice k holds the value 100·k + x everywhere, so order and rescale are checkable.
+    fn slice_pixels(k: i16, cols: u16, rows: u16) -> Vec<i16> {
+        (0..rows)
+            .flat_map(|_| (0..cols).map(move |x| 100 * k + x as i16))
+            .collect()
+    }
+
+    #[test]
+    fn series_is_sorted_rescaled_and_spaced_from_positions() {
+        let dir = ScratchDir::new("dicom");
+        // Written in scrambled order and file names; positions decide the order.
+        for (file, k) in [("b", 2i16), ("a", 0), ("c", 1), ("d", 3)] {
+            let pos = [-10.0, -20.0, 5.0 + 2.5 * f64::from(k)];
+            let bytes = write_slice(
+                3,
+                4,
+                pos,
+                AXIAL,
+                [0.7, 0.6],
+                &slice_pixels(k, 4, 3),
+                [2.0, -1024.0],
+                "1.2.9",
+            );
+            dir.write(file, &bytes);
+        }
+        dir.write("README.txt", b"not dicom");
+        let l = load_dicom_dir(&dir.path("")).expect("load");
+        let v = &l.volume;
+        assert_eq!(v.dims, [4, 3, 4]);
+        assert_eq!(v.spacing, [0.6, 0.7, 2.5]);
+        for k in 0..4 {
+            for x in 0..4 {
+                assert_eq!(v.get(x, 1, k), 2.0 * (100.0 * k as f32 + x as f32) - 1024.0);
+            }
+        }
+        assert_eq!(l.meta.units, Units::Hounsfield);
+    }
+
+    #[test]
+    fn tilted_stack_is_sorted_along_the_normal_and_unsheared() {
+        let dir = ScratchDir::new("dicom-tilt");
+        // Rotated orientation (rows along y, columns along -x): normal is +z.
+        let orient = [0.0, 1.0, 0.0, -1.0, 0.0, 0.0];
+        // Gantry tilt: each slice moves 1 mm along the row direction (+y) per 2 mm in z.
+        for k in 0..3i16 {
+            let pos = [0.0, f64::from(k), 2.0 * f64::from(k)];
+            let mut px = vec![0i16; 8 * 8];
+            // A bright voxel at the same physical point (y = 4 mm) in every slice.
+            px[4 * 8 + (4 - k as usize)] = 1000;
+            dir.write(
+                &format!("s{k}"),
+                &write_slice(8, 8, pos, orient, [1.0, 1.0], &px, [1.0, 0.0], "7"),
+            );
+        }
+        let l = load_dicom_dir(&dir.path("")).expect("load");
+        assert!((l.volume.spacing[2] - 2.0).abs() < 1e-6, "{:?}", l.volume.spacing);
+        for k in 0..3 {
+            assert_eq!(
+                l.volume.get(4, 4, k),
+                1000.0,
+                "slice {k} should be shifted back onto the straight grid"
+            );
+        }
+        assert!(l.meta.notes.iter().any(|n| n.contains("tilted")));
+    }
+
+    #[test]
+    fn malformed_slices_fail_clearly() {
+        let dir = ScratchDir::new("dicom-bad");
+        let good = write_slice(4, 4, [0.0; 3], AXIAL, [1.0, 1.0], &[0; 16], [1.0, 0.0], "1");
+        let mut compressed = good.clone();
+        let at = compressed
+            .windows(19)
+            .position(|w| w == SYNTAX_EXPLICIT_LE.as_bytes())
+            .unwrap();
+        compressed.splice(at..at + 19, b"1.2.840.10008.1.2.4.50".iter().copied());
+        compressed[at - 2..at].copy_from_slice(&22u16.to_le_bytes());
+        let mut huge_len = good.clone();
+        let px_at = huge_len.len() - 32 - 4;
+        huge_len[px_at..px_at + 4].copy_from_slice(&0x7FFF_FFF0u32.to_le_bytes());
+        let cases: Vec<(&str, Vec<u8>, &str)> = vec![
+            ("truncated", good[..good.len() - 10].to_vec(), "past the end"),
+            ("compressed", compressed, "compressed or unknown"),
+            ("huge", huge_len, "past the end"),
+            ("nodicm", vec![0u8; 200], "not a DICOM"),
+        ];
+        for (name, bytes, expected) in cases {
+            let p = dir.write(name, &bytes);
+            let err = parse_slice(&std::fs::read(&p).unwrap(), &p)
+                .expect_err(name)
+                .to_string();
+            assert!(err.contains(expected), "{name}: '{err}' should mention '{expected}'");
+        }
+        // A series of 10^6 × 10^6-pixel slices is refused before allocating the volume.
+        let s = Slice {
+            rows: 65535,
+            columns: 65535,
+            bits_allocated: 16,
+            slope: 1.0,
+            ..Slice::default()
+        };
+        let err = assemble(vec![s; 1000], Path::new("x")).expect_err("absurd").to_string();
+        assert!(err.contains("exceed the limit"), "{err}");
+        // An empty directory says so.
+        let empty = ScratchDir::new("dicom-empty");
+        let err = load_dicom_dir(&empty.path("")).expect_err("empty").to_string();
+        assert!(err.contains("no DICOM files"), "{err}");
+    }
+}
