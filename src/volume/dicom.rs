@@ -357,7 +357,7 @@ pub(crate) fn assemble(mut slices: Vec<Slice>, dir: &Path) -> Result<Loaded, Vol
     }
     let [row_dir, col_dir] = first.orientation.unwrap_or([DVec3::X, DVec3::Y]);
     let normal = row_dir.cross(col_dir);
-    if !(normal.length() > 0.5) {
+    if normal.length().is_nan() || normal.length() <= 0.5 {
         return Err(header_error(&first.path, "ImageOrientationPatient is degenerate"));
     }
     let normal = normal.normalize();
@@ -467,6 +467,7 @@ fn shift_slice(values: &[f32], w: usize, h: usize, shift_x: f64, shift_y: f64) -
 
 /// Writes a minimal explicit-VR little-endian CT slice (tests and fuzz seeds).
 #[cfg(test)]
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn write_slice(
     rows: u16,
     cols: u16,

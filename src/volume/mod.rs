@@ -198,7 +198,7 @@ pub(crate) fn value_range(data: &[f32]) -> [f32; 2] {
 }
 
 /// "10×10×10"
-pub(crate) fn dims_text(dims: &[usize; 3]) -> String {
+pub fn dims_text(dims: &[usize; 3]) -> String {
     format!("{}×{}×{}", dims[0], dims[1], dims[2])
 }
 
