@@ -104,3 +104,31 @@ fn oversized_volume_is_downsampled_or_refused() {
     assert_eq!(out.image.count_invalid(), (0, 0));
     assert!(out.image.max_value() > 0.05, "the downsampled sphere is still visible");
 }
+
+#[test]
+fn time_series_scene_loads_the_selected_frame() {
+    let dir = std::env::temp_dir().join(format!("caustica-formats-series-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    for k in 0..3 {
+        let vol = Volume::new([4, 4, 4], [1.0; 3], vec![k as f32 * 10.0 + 1.0; 64]).unwrap();
+        caustica::volume::nrrd::write_nrrd(&dir.join(format!("t{k}.nrrd")), &vol, true).unwrap();
+    }
+    let scene_path = dir.join("series.toml");
+    std::fs::write(
+        &scene_path,
+        "transfer = { opacity = [[0.0, 0.0], [1.0, 0.5]] }\n[volume]\nkind = \"series\"\npattern = \"t*.nrrd\"\nframe = 1\n",
+    )
+    .unwrap();
+    let scene = caustica::scene::Scene::load(&scene_path).expect("series scene");
+    assert_eq!(scene.volume.series().unwrap().map(|s| s.len()), Some(3));
+    let mut p = PreparedScene::load(&scene).expect("frame 1 loads");
+    assert_eq!(p.volume.data[0], 11.0);
+    p.load_frame(2).expect("frame 2 loads");
+    assert_eq!(p.volume.data[0], 21.0);
+    assert!(p
+        .load_frame(3)
+        .unwrap_err()
+        .to_string()
+        .contains("frame 3 does not exist"));
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -207,7 +207,10 @@ pub fn load_raw(desc: &RawDesc) -> Result<Volume, VolumeError> {
     }
     let mut reader = BufReader::new(file);
     reader.seek(SeekFrom::Start(desc.header_bytes)).map_err(io_err)?;
+    let bar = super::read::progress_bar(expected_bytes, &desc.path);
+    let mut reader = bar.wrap_read(reader);
     let (data, bytes_read) = read_samples(&mut reader, count, desc.scalar, desc.endian, count).map_err(io_err)?;
+    bar.finish_and_clear();
     if data.len() < count {
         // The file shrank between the size check and the read.
         return Err(VolumeError::Truncated {

@@ -137,7 +137,7 @@ pub(crate) fn samples_from_bytes(
 }
 
 /// A bar for large loads; indicatif draws nothing when stderr is not a terminal.
-fn progress_bar(bytes: u64, path: &Path) -> indicatif::ProgressBar {
+pub(crate) fn progress_bar(bytes: u64, path: &Path) -> indicatif::ProgressBar {
     if bytes < PROGRESS_BYTES {
         return indicatif::ProgressBar::hidden();
     }

@@ -326,7 +326,7 @@ fn decode_base64_block(
             .decode(chunk)
             .map_err(|e| data_error(path, format!("invalid base64: {e}")))
     };
-    let header_chars = |bytes: usize| bytes.div_ceil(3) * 4;
+    let header_chars = |bytes: usize| bytes.div_ceil(3).saturating_mul(4);
     let first = header_chars(word * if compressed { 3 } else { 1 });
     let head = b64(clean.get(..first).ok_or_else(|| truncated(path, "header"))?)?;
     if !compressed {
@@ -350,8 +350,8 @@ fn decode_base64_block(
     let table_chars = header_chars(word * (3 + blocks as usize));
     let table = b64(clean.get(..table_chars).ok_or_else(|| truncated(path, "block table"))?)?;
     let (_, block_size, _, sizes) = block_table(&table, word, endian, path)?;
-    let total: u64 = sizes.iter().sum();
-    let data_chars = header_chars(total as usize);
+    let total = sizes.iter().fold(0u64, |sum, &s| sum.saturating_add(s));
+    let data_chars = header_chars(usize::try_from(total).unwrap_or(usize::MAX));
     let payload = b64(clean
         .get(table_chars..table_chars.saturating_add(data_chars))
         .ok_or_else(|| truncated(path, "compressed blocks"))?)?;

@@ -92,8 +92,10 @@ fn read_data(
                 );
             }
             reader.seek(SeekFrom::Start(data_start)).map_err(&io_err)?;
-            let (data, read) =
-                read_samples(&mut reader, count, header.scalar, header.endian, count).map_err(&io_err)?;
+            let bar = crate::volume::read::progress_bar(expected_bytes, data_path);
+            let (data, read) = read_samples(&mut bar.wrap_read(reader), count, header.scalar, header.endian, count)
+                .map_err(&io_err)?;
+            bar.finish_and_clear();
             if data.len() < count {
                 return Err(truncated("NRRD data in", read));
             }
