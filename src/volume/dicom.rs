@@ -192,7 +192,7 @@ pub(crate) fn parse_slice(bytes: &[u8], path: &Path) -> Result<Slice, VolumeErro
         ..Slice::default()
     };
     loop {
-        let Some((group, element, vr, len)) = cur.element() else {
+        let Some((group, element, _, len)) = cur.element() else {
             return Err(header_error(path, "file ends before the pixel data"));
         };
         let Some(len) = len else {
@@ -217,7 +217,6 @@ pub(crate) fn parse_slice(bytes: &[u8], path: &Path) -> Result<Slice, VolumeErro
                 u16::from_le_bytes(b)
             }
         };
-        let _ = vr;
         match (group, element) {
             (0x0008, 0x0060) => s.modality = text(value),
             (0x0018, 0x0050) => s.slice_thickness = numbers(value).first().copied(),
@@ -465,7 +464,57 @@ fn shift_slice(values: &[f32], w: usize, h: usize, shift_x: f64, shift_y: f64) -
     out
 }
 
-/// Writes a minimal explicit-VR little-endian CT slice (tests and fuzz seeds).
+/// Writes DICOM elements in one transfer syntax (tests only).
+#[cfg(test)]
+struct Writer {
+    out: Vec<u8>,
+    explicit: bool,
+    big: bool,
+}
+
+#[cfg(test)]
+impl Writer {
+    fn u16(&mut self, v: u16) {
+        self.out
+            .extend(if self.big { v.to_be_bytes() } else { v.to_le_bytes() });
+    }
+    fn u32(&mut self, v: u32) {
+        self.out
+            .extend(if self.big { v.to_be_bytes() } else { v.to_le_bytes() });
+    }
+    /// An element without a VR (items and delimiters, or any element in implicit VR).
+    fn bare(&mut self, group: u16, elem: u16, len: u32) {
+        self.u16(group);
+        self.u16(elem);
+        self.u32(len);
+    }
+    fn element(&mut self, group: u16, elem: u16, vr: &[u8; 2], value: &[u8]) {
+        let mut value = value.to_vec();
+        if value.len() % 2 == 1 {
+            value.push(if vr == b"UI" || vr == b"OB" { 0 } else { b' ' });
+        }
+        if !self.explicit {
+            self.bare(group, elem, value.len() as u32);
+        } else {
+            self.u16(group);
+            self.u16(elem);
+            self.out.extend(vr);
+            if matches!(vr, b"OB" | b"OW" | b"SQ" | b"UN") {
+                self.out.extend([0, 0]);
+                self.u32(value.len() as u32);
+            } else {
+                self.u16(value.len() as u16);
+            }
+        }
+        self.out.extend(value);
+    }
+    fn us(&mut self, group: u16, elem: u16, v: u16) {
+        let bytes = if self.big { v.to_be_bytes() } else { v.to_le_bytes() };
+        self.element(group, elem, b"US", &bytes);
+    }
+}
+
+/// Writes a minimal explicit-VR little-endian CT slice (tests).
 #[cfg(test)]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn write_slice(
@@ -478,22 +527,21 @@ pub(crate) fn write_slice(
     rescale: [f64; 2],
     series: &str,
 ) -> Vec<u8> {
-    fn element(out: &mut Vec<u8>, group: u16, elem: u16, vr: &[u8; 2], value: &[u8]) {
-        let mut value = value.to_vec();
-        if value.len() % 2 == 1 {
-            value.push(if vr == b"UI" || vr == b"OB" { 0 } else { b' ' });
-        }
-        out.extend(group.to_le_bytes());
-        out.extend(elem.to_le_bytes());
-        out.extend(vr);
-        if matches!(vr, b"OB" | b"OW" | b"SQ" | b"UN") {
-            out.extend([0, 0]);
-            out.extend((value.len() as u32).to_le_bytes());
-        } else {
-            out.extend((value.len() as u16).to_le_bytes());
-        }
-        out.extend(value);
-    }
+    let geometry = (position, orientation, spacing);
+    write_slice_in(SYNTAX_EXPLICIT_LE, rows, cols, geometry, pixels, rescale, series)
+}
+
+/// Writes a minimal CT slice in the transfer syntax `syntax` (tests).
+#[cfg(test)]
+pub(crate) fn write_slice_in(
+    syntax: &str,
+    rows: u16,
+    cols: u16,
+    (position, orientation, spacing): ([f64; 3], [f64; 6], [f64; 2]),
+    pixels: &[i16],
+    rescale: [f64; 2],
+    series: &str,
+) -> Vec<u8> {
     let ds = |v: &[f64]| {
         v.iter()
             .map(|x| x.to_string())
@@ -501,40 +549,49 @@ pub(crate) fn write_slice(
             .join("\\")
             .into_bytes()
     };
-    let mut out = vec![0u8; 128];
-    out.extend(b"DICM");
-    element(&mut out, 0x0002, 0x0010, b"UI", SYNTAX_EXPLICIT_LE.as_bytes());
-    element(&mut out, 0x0008, 0x0060, b"CS", b"CT");
-    // An undefined-length sequence the reader must skip.
-    out.extend(0x0008u16.to_le_bytes());
-    out.extend(0x1140u16.to_le_bytes());
-    out.extend(b"SQ\0\0");
-    out.extend(u32::MAX.to_le_bytes());
-    out.extend(0xFFFEu16.to_le_bytes());
-    out.extend(0xE000u16.to_le_bytes());
-    out.extend(u32::MAX.to_le_bytes());
-    element(&mut out, 0x0008, 0x1150, b"UI", b"1.2.3");
-    out.extend(0xFFFEu16.to_le_bytes());
-    out.extend(0xE00Du16.to_le_bytes());
-    out.extend(0u32.to_le_bytes());
-    out.extend(0xFFFEu16.to_le_bytes());
-    out.extend(0xE0DDu16.to_le_bytes());
-    out.extend(0u32.to_le_bytes());
-    element(&mut out, 0x0018, 0x0050, b"DS", b"2");
-    element(&mut out, 0x0020, 0x000E, b"UI", series.as_bytes());
-    element(&mut out, 0x0020, 0x0032, b"DS", &ds(&position));
-    element(&mut out, 0x0020, 0x0037, b"DS", &ds(&orientation));
-    element(&mut out, 0x0028, 0x0002, b"US", &1u16.to_le_bytes());
-    element(&mut out, 0x0028, 0x0010, b"US", &rows.to_le_bytes());
-    element(&mut out, 0x0028, 0x0011, b"US", &cols.to_le_bytes());
-    element(&mut out, 0x0028, 0x0030, b"DS", &ds(&spacing));
-    element(&mut out, 0x0028, 0x0100, b"US", &16u16.to_le_bytes());
-    element(&mut out, 0x0028, 0x0103, b"US", &1u16.to_le_bytes());
-    element(&mut out, 0x0028, 0x1052, b"DS", &ds(&[rescale[1]]));
-    element(&mut out, 0x0028, 0x1053, b"DS", &ds(&[rescale[0]]));
-    let px: Vec<u8> = pixels.iter().flat_map(|v| v.to_le_bytes()).collect();
-    element(&mut out, 0x7FE0, 0x0010, b"OW", &px);
-    out
+    let mut w = Writer {
+        out: vec![0u8; 128],
+        explicit: true,
+        big: false,
+    };
+    w.out.extend(b"DICM");
+    // The file meta group is explicit VR little endian in every syntax.
+    w.element(0x0002, 0x0010, b"UI", syntax.as_bytes());
+    w.explicit = syntax != SYNTAX_IMPLICIT_LE;
+    w.big = syntax == SYNTAX_EXPLICIT_BE;
+    w.element(0x0008, 0x0060, b"CS", b"CT");
+    // An undefined-length sequence with one undefined-length item, which the reader must skip.
+    if w.explicit {
+        w.u16(0x0008);
+        w.u16(0x1140);
+        w.out.extend(b"SQ\0\0");
+        w.u32(u32::MAX);
+    } else {
+        w.bare(0x0008, 0x1140, u32::MAX);
+    }
+    w.bare(0xFFFE, 0xE000, u32::MAX);
+    w.element(0x0008, 0x1150, b"UI", b"1.2.3");
+    w.bare(0xFFFE, 0xE00D, 0);
+    w.bare(0xFFFE, 0xE0DD, 0);
+    w.element(0x0018, 0x0050, b"DS", b"2");
+    w.element(0x0020, 0x000E, b"UI", series.as_bytes());
+    w.element(0x0020, 0x0032, b"DS", &ds(&position));
+    w.element(0x0020, 0x0037, b"DS", &ds(&orientation));
+    w.us(0x0028, 0x0002, 1);
+    w.us(0x0028, 0x0010, rows);
+    w.us(0x0028, 0x0011, cols);
+    w.element(0x0028, 0x0030, b"DS", &ds(&spacing));
+    w.us(0x0028, 0x0100, 16);
+    w.us(0x0028, 0x0103, 1);
+    w.element(0x0028, 0x1052, b"DS", &ds(&[rescale[1]]));
+    w.element(0x0028, 0x1053, b"DS", &ds(&[rescale[0]]));
+    let big = w.big;
+    let px: Vec<u8> = pixels
+        .iter()
+        .flat_map(|v| if big { v.to_be_bytes() } else { v.to_le_bytes() })
+        .collect();
+    w.element(0x7FE0, 0x0010, b"OW", &px);
+    w.out
 }
 
 #[cfg(test)]
@@ -581,6 +638,27 @@ mod tests {
             }
         }
         assert_eq!(l.meta.units, Units::Hounsfield);
+    }
+
+    #[test]
+    fn every_uncompressed_transfer_syntax_reads_the_same() {
+        let pixels = slice_pixels(3, 4, 2);
+        for syntax in [SYNTAX_IMPLICIT_LE, SYNTAX_EXPLICIT_LE, SYNTAX_EXPLICIT_BE] {
+            let geometry = ([1.0, 2.0, 3.0], AXIAL, [0.5, 0.25]);
+            let bytes = write_slice_in(syntax, 2, 4, geometry, &pixels, [1.0, -1024.0], "5");
+            let s = parse_slice(&bytes, Path::new("x.dcm")).unwrap_or_else(|e| panic!("{syntax}: {e}"));
+            assert_eq!(
+                (s.rows, s.columns, s.bits_allocated, s.signed),
+                (2, 4, 16, true),
+                "{syntax}"
+            );
+            assert_eq!(s.pixel_spacing, Some([0.5, 0.25]));
+            assert_eq!(s.position, Some(DVec3::new(1.0, 2.0, 3.0)));
+            assert_eq!((s.slope, s.intercept), (1.0, -1024.0));
+            let values = decode_samples(&s.pixels, ScalarType::I16, s.endian);
+            let expected: Vec<f32> = pixels.iter().map(|&v| f32::from(v)).collect();
+            assert_eq!(values, expected, "{syntax}");
+        }
     }
 
     #[test]

@@ -147,7 +147,7 @@ pub fn load_vti(path: &Path) -> Result<Loaded, VolumeError> {
                     format!("ascii array has {} values but the extent needs {count}", values.len()),
                 ));
             }
-            return finish(path, layout, spacing, values);
+            return finish(layout, spacing, values);
         }
         "binary" => decode_base64_block(
             desc.text.as_bytes(),
@@ -193,11 +193,10 @@ pub fn load_vti(path: &Path) -> Result<Loaded, VolumeError> {
         other => return Err(header_error(path, format!("DataArray format '{other}' is unknown"))),
     };
     let data = samples_from_bytes(&blob, path, layout, "VTK array in")?;
-    finish(path, layout, spacing, data)
+    finish(layout, spacing, data)
 }
 
-fn finish(path: &Path, layout: Layout, spacing: [f32; 3], data: Vec<f32>) -> Result<Loaded, VolumeError> {
-    let _ = path;
+fn finish(layout: Layout, spacing: [f32; 3], data: Vec<f32>) -> Result<Loaded, VolumeError> {
     Ok(Loaded::new(
         Volume::new(layout.dims, spacing, data)?,
         VolumeMeta::new(Format::Vti, Some(layout.scalar)),
