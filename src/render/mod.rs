@@ -130,7 +130,8 @@ impl PreparedScene {
         self.tf = crate::transfer::default_for(&self.volume_info.meta, &self.volume_info.histogram, self.window());
     }
 
-    /// Loads frame `k` of a time-series volume in place (the viewer's time slider).
+    /// Loads frame `k` of a time-series volume in place (the viewer's time slider). Call
+    /// [`PreparedScene::fit_to_device`] again afterwards if frames may exceed the device limits.
     pub fn load_frame(&mut self, k: usize) -> Result<(), RenderError> {
         self.scene.volume.set_frame(k);
         let loaded = self.scene.volume.open()?;

@@ -5,5 +5,6 @@
 mod common;
 
 libfuzzer_sys::fuzz_target!(|data: &[u8]| {
+    // Plain and gzip-compressed inputs go through the same file name; the reader sniffs gzip.
     common::load("input.nii", data);
 });
