@@ -55,7 +55,7 @@ enum Command {
 
 #[derive(clap::Args)]
 struct RenderArgs {
-    /// A scene file (.toml), a volume file (see README, "Volume formats"), a DICOM directory,
+    /// A scene file (.toml), a volume file (see README, "Volume input"), a DICOM directory,
     /// a time-series pattern with '*' (quote it), or raw data with --raw-dims.
     input: Option<PathBuf>,
     /// Render a built-in scene instead (see `caustica scenes`).

@@ -3,8 +3,13 @@
 
 use super::{checked_voxel_count, Volume, VolumeError};
 
-/// Trilinear resampling of `src` onto `dims` voxels spanning the same box; the spacing grows
-/// or shrinks so that the physical extent stays the same.
+/// Most sub-samples per axis averaged for one target voxel when downsampling.
+const MAX_FOOTPRINT_SAMPLES: usize = 4;
+
+/// Resamples `src` onto `dims` voxels spanning the same box; the spacing grows or shrinks so
+/// that the physical extent stays the same. Upsampling is trilinear; when downsampling, each
+/// target voxel averages trilinear samples spread over its footprint (up to 4 per axis), so
+/// thin structures fade instead of vanishing between sample points.
 pub fn resample(src: &Volume, dims: [usize; 3]) -> Result<Volume, VolumeError> {
     let count = checked_voxel_count(dims)?;
     if dims == src.dims {
@@ -15,14 +20,31 @@ pub fn resample(src: &Volume, dims: [usize; 3]) -> Result<Volume, VolumeError> {
     // Voxel centre i of the target lies at (i + 0.5) / n_target of the box, which is source
     // voxel coordinate (i + 0.5) · n_source / n_target − 0.5.
     let scale = [0, 1, 2].map(|a| src.dims[a] as f32 / dims[a] as f32);
-    let coordinate = |a: usize, i: usize| ((i as f32 + 0.5) * scale[a] - 0.5).clamp(0.0, (src.dims[a] - 1) as f32);
+    let offsets: [Vec<f32>; 3] = [0, 1, 2].map(|a| {
+        if scale[a] <= 1.0 {
+            return vec![0.0];
+        }
+        let k = (scale[a].ceil() as usize).min(MAX_FOOTPRINT_SAMPLES);
+        (0..k).map(|j| ((j as f32 + 0.5) / k as f32 - 0.5) * scale[a]).collect()
+    });
+    let samples = (offsets[0].len() * offsets[1].len() * offsets[2].len()) as f32;
+    let coordinate = |a: usize, c: f32| c.clamp(0.0, (src.dims[a] - 1) as f32);
+    let centre = |a: usize, i: usize| (i as f32 + 0.5) * scale[a] - 0.5;
     let mut data = Vec::with_capacity(count);
     for z in 0..dims[2] {
-        let sz = coordinate(2, z);
         for y in 0..dims[1] {
-            let sy = coordinate(1, y);
             for x in 0..dims[0] {
-                data.push(src.sample_trilinear([coordinate(0, x), sy, sz]));
+                let mut sum = 0.0f32;
+                for dz in &offsets[2] {
+                    let sz = coordinate(2, centre(2, z) + dz);
+                    for dy in &offsets[1] {
+                        let sy = coordinate(1, centre(1, y) + dy);
+                        for dx in &offsets[0] {
+                            sum += src.sample_trilinear([coordinate(0, centre(0, x) + dx), sy, sz]);
+                        }
+                    }
+                }
+                data.push(sum / samples);
             }
         }
     }
@@ -63,8 +85,20 @@ mod tests {
         assert!((up.get(7, 1, 1) - 3.25).abs() < 1e-5, "{}", up.get(7, 1, 1));
         let down = resample(&src, [4, 2, 1]).unwrap();
         assert_eq!(down.spacing, [2.0, 4.0, 10.0]);
-        // Target x = 1: source coordinate 1.5 · 2 − 0.5 = 2.5.
+        // Target x = 1 covers source voxels 2 and 3: their mean is 2.5.
         assert!((down.get(1, 0, 0) - 2.5).abs() < 1e-5);
+    }
+
+    #[test]
+    fn downsampling_averages_the_footprint() {
+        // One bright voxel in four along x: point sampling between voxels 1 and 2 of each
+        // group would miss it entirely; the footprint average keeps its mean, 0.25.
+        let data = (0..16).map(|i| if i % 4 == 0 { 1.0 } else { 0.0 }).collect();
+        let src = Volume::new([16, 1, 1], [1.0; 3], data).unwrap();
+        let down = resample(&src, [4, 1, 1]).unwrap();
+        for x in 0..4 {
+            assert!((down.get(x, 0, 0) - 0.25).abs() < 1e-6, "{:?}", down.data);
+        }
     }
 
     #[test]
