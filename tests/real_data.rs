@@ -137,3 +137,23 @@ fn ct_head_renders_finite_with_air_transparent_under_the_ct_preset() {
         .iter()
         .all(|p| (0..3).any(|c| (p[c] - background[c]).abs() > 1e-2)));
 }
+
+#[test]
+fn fetch_fails_clearly_when_it_cannot_download() {
+    // Without apt-get on the PATH the script must stop with a message, not produce files.
+    let dest = std::env::temp_dir().join(format!("caustica-fetch-{}", std::process::id()));
+    let out = Command::new("/bin/bash")
+        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("datasets").join("fetch"))
+        .arg(&dest)
+        .env("PATH", dest.join("no-tools-here"))
+        .output()
+        .expect("run datasets/fetch");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "fetch succeeded without apt-get: {stderr}");
+    assert!(
+        stderr.contains("datasets/fetch: error:") && stderr.contains("apt-get"),
+        "{stderr}"
+    );
+    assert!(!dest.join("ct-head.nhdr").exists());
+    let _ = std::fs::remove_dir_all(&dest);
+}
