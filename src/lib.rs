@@ -6,8 +6,8 @@
 //!
 //! | module | what it holds |
 //! |---|---|
-//! | [`volume`] | `Volume` (dims, spacing, samples, value range), one file per format loader, procedural scenes |
-//! | [`transfer`] | the four transfer functions (α, c, η, m), their JSON format, pre-integration |
+//! | [`volume`] | `Volume` (dims, spacing, samples, value range), one file per format loader (NRRD, MetaImage, NIfTI, DICOM, VTK, raw), histogram and metadata ([`volume::Loaded`]), resampling, time series, procedural scenes |
+//! | [`transfer`] | the four transfer functions (α, c, η, m), their JSON format, importers (ParaView, Inviwo, Slicer), defaults from a histogram, pre-integration |
 //! | [`scene`] | everything one image depends on; TOML scene files; built-in scenes |
 //! | [`gpu`] | a thin documented layer over ash: device, memory, images, pipelines, naga shaders |
 //! | [`render`] | the method on top of `gpu`: planes, propagation, environment, output; `Features` |
@@ -18,8 +18,8 @@
 //! Each layer only calls the one below it: `main` and `app` use `render` + `scene`; `render` uses `gpu`;
 //! nothing in `gpu` knows what a volume is.
 
-pub mod bench;
 pub mod app;
+pub mod bench;
 pub mod gpu;
 pub mod reference;
 pub mod render;

@@ -58,6 +58,8 @@ enum Command {
     Scenes,
     /// List the Vulkan devices caustica sees.
     Devices,
+    /// Describe a volume file: dims, scalar type, spacing, value range, histogram, window.
+    Info(InfoArgs),
     /// Write the volume of a built-in scene to an NRRD file.
     Dataset {
         /// Built-in volume: ball-lens, glass, supernova, luneburg, thin-structures
@@ -103,7 +105,8 @@ struct BenchArgs {
 
 #[derive(clap::Args)]
 struct RenderArgs {
-    /// A scene file (.toml) or a volume file (.nrrd, .nhdr, or raw with --raw-dims).
+    /// A scene file (.toml), a volume file (see README, "Volume input"), a DICOM directory,
+    /// a time-series pattern with '*' (quote it), or raw data with --raw-dims.
     input: Option<PathBuf>,
     /// Render a built-in scene instead (see `caustica scenes`).
     #[arg(long, conflicts_with = "input")]
@@ -135,9 +138,19 @@ struct RenderArgs {
     /// Override the resolution of a built-in scene's volume.
     #[arg(long)]
     resolution: Option<usize>,
-    /// Transfer functions (JSON), replacing those of the scene.
+    /// Transfer functions replacing those of the scene: caustica JSON, ParaView colour map
+    /// JSON, Inviwo .itf or 3D Slicer presets.xml (FILE#NAME picks one preset).
     #[arg(long)]
     transfer: Option<PathBuf>,
+    /// Data window mapped onto the transfer functions, as LOW,HIGH in data units.
+    #[arg(long, value_parser = parse_window)]
+    window: Option<[f32; 2]>,
+    /// Time series: the frame to render (index, rounded to the nearest).
+    #[arg(long)]
+    time: Option<f32>,
+    /// Fail instead of downsampling a volume that exceeds the device's 3D-texture limits.
+    #[arg(long)]
+    no_downsample: bool,
     /// Raw volume: dims as XxYxZ.
     #[arg(long, value_parser = parse_dims)]
     raw_dims: Option<[usize; 3]>,
@@ -185,6 +198,17 @@ fn parse_precision(s: &str) -> Result<Precision, String> {
     Precision::parse(s).ok_or_else(|| format!("'{s}': expected f16 or f32"))
 }
 
+fn parse_window(s: &str) -> Result<[f32; 2], String> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|p| p.trim().parse::<f32>().map_err(|e| format!("'{p}': {e}")))
+        .collect::<Result<_, _>>()?;
+    match v[..] {
+        [lo, hi] if lo.is_finite() && hi.is_finite() && hi > lo => Ok([lo, hi]),
+        _ => Err("expected LOW,HIGH with LOW < HIGH, e.g. -1000,2000".to_string()),
+    }
+}
+
 fn parse_debug_view(s: &str) -> Result<DebugView, String> {
     DebugView::parse(s).ok_or_else(|| format!("'{s}': expected light, light-direction, intensity or medium"))
 }
@@ -204,6 +228,11 @@ fn scene_for_volume(args: &RenderArgs, path: &Path) -> Result<Scene> {
             spacing: args.raw_spacing.unwrap_or([1.0; 3]),
             header_bytes: args.raw_header,
         }),
+        None if path.to_string_lossy().contains('*') => VolumeSource::Series {
+            files: Vec::new(),
+            pattern: Some(path.to_path_buf()),
+            frame: 0,
+        },
         None => VolumeSource::File {
             path: path.to_path_buf(),
         },
@@ -230,8 +259,16 @@ fn load_scene(args: &RenderArgs) -> Result<Scene> {
         (None, None) => bail!("give a scene file, a volume file or --scene NAME (see `caustica scenes`)"),
     };
     if let Some(path) = &args.transfer {
-        scene.transfer = TransferSource::Inline(TransferFunctions::load(path)?);
+        let imported = caustica::transfer::load_any(path)?;
+        scene.transfer = TransferSource::Inline(imported.tf);
+        if imported.domain.is_some() {
+            scene.window = imported.domain;
+        }
     }
+    if let Some(window) = args.window {
+        scene.window = Some(window);
+    }
+    select_time(&mut scene, args.time)?;
     if let Some(d) = args.sample_distance {
         scene.quality.sample_distance = d;
     }
@@ -245,10 +282,44 @@ fn load_scene(args: &RenderArgs) -> Result<Scene> {
     Ok(scene)
 }
 
+/// Applies `--time T` to a time-series volume.
+fn select_time(scene: &mut Scene, time: Option<f32>) -> Result<()> {
+    let Some(t) = time else { return Ok(()) };
+    match scene.volume.series()? {
+        Some(series) => {
+            let frame = series.frame_at(t)?;
+            scene.volume.set_frame(frame);
+            eprintln!("frame {frame} of {}: {}", series.len(), series.frames[frame].display());
+            Ok(())
+        }
+        None => bail!("--time needs a time series (a file pattern with '*' or kind = \"series\" in the scene)"),
+    }
+}
+
+/// True when the render input is a bare volume file (no scene, no --transfer): its transfer
+/// functions then come from its histogram.
+fn wants_default_transfer(args: &RenderArgs) -> bool {
+    let scene_file = args
+        .input
+        .as_ref()
+        .is_some_and(|p| p.extension().is_some_and(|e| e == "toml"));
+    args.scene.is_none() && !scene_file && args.transfer.is_none()
+}
+
 fn render(args: &RenderArgs) -> Result<()> {
     let scene = load_scene(args)?;
-    let prepared = PreparedScene::load(&scene)?;
+    let mut prepared = PreparedScene::load(&scene)?;
+    if wants_default_transfer(args) {
+        prepared.use_default_transfer();
+        eprintln!(
+            "transfer functions: {} (window {:?})",
+            prepared.tf.name.as_deref().unwrap_or("automatic"),
+            prepared.window()
+        );
+    }
     let ctx = Context::new(&ContextDesc::from_env(DeviceSelector::parse(&args.device)))?;
+    // Volume textures may use half the device-local memory; the rest is state and tables.
+    prepared.fit_to_device(ctx.info.max_image_3d, ctx.device_local_bytes() / 2, !args.no_downsample)?;
     let mut renderer = Renderer::new(ctx.clone())?;
     let mut req = RenderRequest::new(args.size.0, args.size.1);
     req.progress = true;
@@ -365,11 +436,79 @@ fn bench(args: &BenchArgs) -> Result<()> {
     Ok(())
 }
 
+#[derive(clap::Args)]
+struct InfoArgs {
+    /// A volume file, a directory of DICOM files, or a time-series pattern with '*'.
+    input: PathBuf,
+    /// Rows of the histogram sketch.
+    #[arg(long, default_value_t = 16)]
+    histogram_rows: usize,
+}
+
+fn info(args: &InfoArgs) -> Result<()> {
+    let started = std::time::Instant::now();
+    let pattern = args.input.to_string_lossy().contains('*');
+    let loaded = if pattern {
+        let series = volume::series::Series::from_pattern(&args.input)?;
+        println!(
+            "time series: {} frames (showing frame 0: {})",
+            series.len(),
+            series.frames[0].display()
+        );
+        series.open_frame(0)?
+    } else {
+        volume::open(&args.input)?
+    };
+    let load_ms = started.elapsed().as_secs_f64() * 1e3;
+    let v = &loaded.volume;
+    let m = &loaded.meta;
+    let h = &loaded.histogram;
+    println!("file:        {}", args.input.display());
+    println!("format:      {}", m.format);
+    println!(
+        "dims:        {} ({} voxels)",
+        volume::dims_text(&v.dims),
+        v.voxel_count()
+    );
+    println!(
+        "scalar type: {}",
+        m.scalar.map_or("unknown".to_string(), |s| s.to_string())
+    );
+    println!("spacing:     {} × {} × {}", v.spacing[0], v.spacing[1], v.spacing[2]);
+    let e = v.extent();
+    println!("extent:      {} × {} × {}", e[0], e[1], e[2]);
+    println!("modality:    {}", m.modality.as_deref().unwrap_or("unknown"));
+    println!("units:       {}", m.units);
+    println!("value range: [{}, {}]", v.value_range[0], v.value_range[1]);
+    println!(
+        "percentiles: 0.5% {}  50% {}  99.5% {}",
+        h.tails[0],
+        h.quantile(0.5),
+        h.tails[1]
+    );
+    println!("window:      {:?} ({})", loaded.default_window(), loaded.window_rule());
+    let tf = caustica::transfer::default_for(m, h, loaded.default_window());
+    println!(
+        "default transfer functions: {}",
+        tf.name.as_deref().unwrap_or("automatic")
+    );
+    for note in &m.notes {
+        println!("note:        {note}");
+    }
+    println!("load time:   {load_ms:.0} ms");
+    println!("histogram ({} bins, log scale):", volume::histogram::HISTOGRAM_BINS);
+    for line in h.summary(args.histogram_rows) {
+        println!("  {line}");
+    }
+    Ok(())
+}
+
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Render(args) => render(&args),
         Command::Bench(args) => bench(&args),
         Command::View(args) => caustica::app::run(&args),
+        Command::Info(args) => info(&args),
         Command::Scenes => {
             for name in BUILTIN_SCENES {
                 let s = builtin(name)?;

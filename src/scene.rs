@@ -6,7 +6,8 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use crate::transfer::{TransferError, TransferFunctions};
-use crate::volume::{self, raw::RawDesc, Volume, VolumeError};
+use crate::volume::series::Series;
+use crate::volume::{self, raw::RawDesc, Format, Loaded, Volume, VolumeError, VolumeMeta};
 
 mod builtin;
 pub use builtin::{builtin, BuiltinScene, BUILTIN_SCENES};
@@ -40,10 +41,21 @@ pub enum VolumeSource {
         #[serde(default = "default_resolution")]
         resolution: usize,
     },
-    /// A file whose format is known from its extension (`.nrrd`, `.nhdr`).
+    /// A file whose format is known from its extension (see README, "Volume formats"), or a
+    /// directory holding a DICOM series.
     File { path: PathBuf },
     /// Raw samples: dims, scalar type, endianness and spacing given here.
     Raw(RawDesc),
+    /// A time series: `files` in order, or the files matching `pattern` (one `*` in the file
+    /// name); `frame` is the one shown.
+    Series {
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        files: Vec<PathBuf>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        pattern: Option<PathBuf>,
+        #[serde(default)]
+        frame: usize,
+    },
 }
 
 fn default_resolution() -> usize {
@@ -52,10 +64,46 @@ fn default_resolution() -> usize {
 
 impl VolumeSource {
     pub fn load(&self) -> Result<Volume, VolumeError> {
+        self.open().map(|loaded| loaded.volume)
+    }
+
+    /// Loads the volume with its metadata and histogram.
+    pub fn open(&self) -> Result<Loaded, VolumeError> {
         match self {
-            VolumeSource::Builtin { name, resolution } => volume::procedural::generate(name, *resolution),
-            VolumeSource::File { path } => volume::load(path),
-            VolumeSource::Raw(desc) => volume::raw::load_raw(desc),
+            VolumeSource::Builtin { name, resolution } => Ok(Loaded::new(
+                volume::procedural::generate(name, *resolution)?,
+                VolumeMeta::new(Format::Procedural, None),
+            )),
+            VolumeSource::File { path } => volume::open(path),
+            VolumeSource::Raw(desc) => Ok(Loaded::new(
+                volume::raw::load_raw(desc)?,
+                VolumeMeta::new(Format::Raw, Some(desc.scalar)),
+            )),
+            VolumeSource::Series { frame, .. } => match self.series()? {
+                Some(series) => series.open_frame(*frame),
+                None => Err(VolumeError::Series("no frames".into())),
+            },
+        }
+    }
+
+    /// The frames of a time series; `None` for a single volume.
+    pub fn series(&self) -> Result<Option<Series>, VolumeError> {
+        let VolumeSource::Series { files, pattern, .. } = self else {
+            return Ok(None);
+        };
+        match (files.is_empty(), pattern) {
+            (false, None) => Series::from_list(files.clone()).map(Some),
+            (true, Some(p)) => Series::from_pattern(p).map(Some),
+            _ => Err(VolumeError::Series(
+                "give either files = [...] or pattern = \"...\"".into(),
+            )),
+        }
+    }
+
+    /// Selects frame `k` of a time series (no effect on a single volume).
+    pub fn set_frame(&mut self, k: usize) {
+        if let VolumeSource::Series { frame, .. } = self {
+            *frame = k;
         }
     }
 
@@ -63,6 +111,14 @@ impl VolumeSource {
         match self {
             VolumeSource::File { path } => *path = base.join(&*path),
             VolumeSource::Raw(desc) => desc.path = base.join(&desc.path),
+            VolumeSource::Series { files, pattern, .. } => {
+                for f in files.iter_mut() {
+                    *f = base.join(&*f);
+                }
+                if let Some(p) = pattern {
+                    *p = base.join(&*p);
+                }
+            }
             VolumeSource::Builtin { .. } => {}
         }
     }
@@ -329,7 +385,8 @@ impl Default for Quality {
 #[serde(deny_unknown_fields)]
 pub struct Scene {
     pub volume: VolumeSource,
-    /// Optional separate volume used as the source of η (paper Fig. 12e); same grid.
+    /// Optional separate volume used as the source of η (paper Fig. 12e); resampled onto the
+    /// volume's grid when its dims differ (both span the same box).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub eta_volume: Option<VolumeSource>,
     /// Data values mapped to 0 and 1 of the transfer-function domain; default: the value range.
@@ -367,7 +424,10 @@ impl Scene {
             v.resolve_paths(base);
         }
         if let TransferSource::File(p) = &scene.transfer {
-            scene.transfer = TransferSource::Inline(TransferFunctions::load(&base.join(p))?);
+            // Any importable format; positions in data units give the window unless one is set.
+            let imported = crate::transfer::load_any(&base.join(p))?;
+            scene.window = scene.window.or(imported.domain);
+            scene.transfer = TransferSource::Inline(imported.tf);
         }
         if let Environment::Image { path, .. } = &mut scene.environment {
             *path = base.join(&*path);

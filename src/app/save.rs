@@ -52,6 +52,12 @@ fn absolutise(scene: &mut Scene) {
         match v {
             VolumeSource::File { path } => abs(path),
             VolumeSource::Raw(desc) => abs(&mut desc.path),
+            VolumeSource::Series { files, pattern, .. } => {
+                files.iter_mut().for_each(abs);
+                if let Some(p) = pattern {
+                    abs(p);
+                }
+            }
             VolumeSource::Builtin { .. } => {}
         }
     }

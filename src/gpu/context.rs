@@ -509,6 +509,19 @@ impl Context {
         &self.properties.limits
     }
 
+    /// Size of the largest device-local memory heap in bytes (system memory on CPU drivers).
+    pub fn device_local_bytes(&self) -> u64 {
+        // SAFETY: plain query on a valid physical device.
+        let props = unsafe { self.instance.get_physical_device_memory_properties(self.physical) };
+        let count = (props.memory_heap_count as usize).min(props.memory_heaps.len());
+        props.memory_heaps[..count]
+            .iter()
+            .filter(|h| h.flags.contains(vk::MemoryHeapFlags::DEVICE_LOCAL))
+            .map(|h| h.size)
+            .max()
+            .unwrap_or(0)
+    }
+
     /// Nanoseconds per timestamp tick.
     pub fn timestamp_period_ns(&self) -> f64 {
         self.properties.limits.timestamp_period as f64

@@ -14,10 +14,14 @@
 //! colour is the fraction of each channel a one-voxel-long segment lets through. Both are
 //! rescaled to the actual segment length by pre-integration ([`preintegrate`]).
 
+mod auto;
 mod curve;
+pub mod import;
 mod preintegrate;
 
+pub use auto::default_for;
 pub use curve::{ColorRamp, Curve};
+pub use import::{load_any, Imported};
 pub use preintegrate::{preintegrate, PreintegratedTables, MAX_OPTICAL_DEPTH_PER_VOXEL, TABLE_SIZE};
 
 use std::path::{Path, PathBuf};
@@ -40,6 +44,8 @@ pub enum TransferError {
         index: usize,
         message: String,
     },
+    #[error("cannot import transfer functions from {path}: {message}")]
+    Import { path: PathBuf, message: String },
     #[error("invalid transfer function: {function} has no control points")]
     Empty { function: &'static str },
 }

@@ -1,14 +1,25 @@
 //! Scalar volumes on a regular grid: the in-memory type, its errors and format dispatch.
 
 mod decode;
+pub mod dicom;
+pub mod histogram;
+pub mod meta;
+pub mod metaimage;
+pub mod nifti;
 pub mod nrrd;
 pub mod procedural;
 pub mod raw;
+mod read;
+pub mod resample;
+pub mod series;
 #[cfg(test)]
 mod test_support;
+pub mod vti;
 
 use std::path::{Path, PathBuf};
 
+pub use histogram::Histogram;
+pub use meta::{Format, Loaded, Units, VolumeMeta, CT_WINDOW};
 pub use raw::{Endian, RawDesc, ScalarType};
 
 /// Largest voxel count any loader or generator accepts (2^31). Checked before allocating,
@@ -122,14 +133,46 @@ impl Volume {
     }
 }
 
-/// Loads a volume file, choosing the reader by extension (`.nrrd`, `.nhdr`).
+/// Loads a volume file, choosing the reader by extension; see [`open`].
 pub fn load(path: &Path) -> Result<Volume, VolumeError> {
-    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-    match ext.as_deref() {
-        Some("nrrd") | Some("nhdr") => nrrd::load_nrrd(path),
-        _ => Err(VolumeError::UnknownFormat {
-            path: path.to_path_buf(),
-        }),
+    open(path).map(|loaded| loaded.volume)
+}
+
+/// File extensions [`open`] understands (a directory is read as a DICOM series).
+pub const EXTENSIONS: &str = ".nrrd, .nhdr, .mha, .mhd, .nii, .nii.gz, .hdr, .vti, .dcm (its directory), \
+                              .raw with a .json sidecar, or a directory of DICOM files";
+
+/// Loads a volume with what the file says about it and its histogram, choosing the reader by
+/// extension; a directory is read as a DICOM series.
+pub fn open(path: &Path) -> Result<Loaded, VolumeError> {
+    if path.is_dir() {
+        return dicom::load_dicom_dir(path);
+    }
+    let name = path
+        .file_name()
+        .and_then(|n| n.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase();
+    let ext = name.rsplit('.').next().unwrap_or("");
+    match ext {
+        "nrrd" | "nhdr" => nrrd::open_nrrd(path),
+        "mha" | "mhd" => metaimage::load_metaimage(path),
+        "nii" | "hdr" => nifti::load_nifti(path),
+        "gz" if name.ends_with(".nii.gz") || name.ends_with(".hdr.gz") => nifti::load_nifti(path),
+        "vti" => vti::load_vti(path),
+        "dcm" => {
+            let dir = path
+                .parent()
+                .filter(|p| !p.as_os_str().is_empty())
+                .unwrap_or(Path::new("."));
+            dicom::load_dicom_dir(dir)
+        }
+        _ => match raw::sidecar_path(path) {
+            Some(sidecar) => raw::load_raw_with_sidecar(path, &sidecar),
+            None => Err(VolumeError::UnknownFormat {
+                path: path.to_path_buf(),
+            }),
+        },
     }
 }
 
@@ -155,7 +198,7 @@ pub(crate) fn value_range(data: &[f32]) -> [f32; 2] {
 }
 
 /// "10×10×10"
-pub(crate) fn dims_text(dims: &[usize; 3]) -> String {
+pub fn dims_text(dims: &[usize; 3]) -> String {
     format!("{}×{}×{}", dims[0], dims[1], dims[2])
 }
 
@@ -226,15 +269,18 @@ pub enum VolumeError {
     UnsupportedType(String),
     #[error("data of {}: {message}", path.display())]
     Data { path: PathBuf, message: String },
+    #[error("time series: {0}")]
+    Series(String),
     #[error(
         "unknown scene volume '{0}' (valid names: {names})",
         names = procedural::SCENE_VOLUMES.join(", ")
     )]
     UnknownScene(String),
     #[error(
-        "unknown volume format for {} (supported: .nrrd, .nhdr; for raw files give \
+        "unknown volume format for {} (supported: {ext}; for raw files give \
          --raw-dims and --raw-type, or kind = \"raw\" in a scene file)",
-        path.display()
+        path.display(),
+        ext = EXTENSIONS
     )]
     UnknownFormat { path: PathBuf },
 }
@@ -316,5 +362,9 @@ mod tests {
         let err = load(Path::new("head.raw")).unwrap_err();
         let text = err.to_string();
         assert!(text.contains("head.raw") && text.contains(".nrrd, .nhdr"), "{text}");
+        assert!(
+            text.contains(".nii.gz") && text.contains(".vti") && text.contains(".mha"),
+            "{text}"
+        );
     }
 }

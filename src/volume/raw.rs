@@ -3,11 +3,11 @@
 use std::fmt;
 use std::fs::File;
 use std::io::{BufReader, Seek, SeekFrom};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
 use super::decode::read_samples;
-use super::{checked_voxel_count, dims_text, Volume, VolumeError};
+use super::{checked_voxel_count, dims_text, Format, Loaded, Volume, VolumeError, VolumeMeta};
 
 pub use super::decode::decode_samples;
 
@@ -116,6 +116,59 @@ fn one3() -> [f32; 3] {
     [1.0; 3]
 }
 
+/// What a sidecar file (`head.raw.json` or `head.json` next to `head.raw`) says about a raw
+/// file: the fields of [`RawDesc`] without the path, e.g.
+/// `{"dims": [256, 256, 108], "scalar": "i16", "spacing": [0.96, 0.96, 1.5], "modality": "CT"}`.
+#[derive(Clone, Debug, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RawSidecar {
+    pub dims: [usize; 3],
+    pub scalar: ScalarType,
+    #[serde(default)]
+    pub endian: Endian,
+    #[serde(default = "one3")]
+    pub spacing: [f32; 3],
+    #[serde(default)]
+    pub header_bytes: u64,
+    #[serde(default)]
+    pub modality: Option<String>,
+}
+
+/// The sidecar of a raw file, if one exists: `NAME.json` beside `NAME`, or `STEM.json`.
+pub fn sidecar_path(path: &Path) -> Option<PathBuf> {
+    let mut appended = path.as_os_str().to_owned();
+    appended.push(".json");
+    [PathBuf::from(appended), path.with_extension("json")]
+        .into_iter()
+        .find(|p| p.is_file() && p != path)
+}
+
+/// Reads a raw file described by a JSON sidecar.
+pub fn load_raw_with_sidecar(path: &Path, sidecar: &Path) -> Result<Loaded, VolumeError> {
+    let text = std::fs::read_to_string(sidecar).map_err(|source| VolumeError::Io {
+        path: sidecar.to_path_buf(),
+        source,
+    })?;
+    let side: RawSidecar = serde_json::from_str(&text).map_err(|e| VolumeError::Header {
+        path: sidecar.to_path_buf(),
+        line: Some(e.line()),
+        message: format!("raw sidecar: {e}"),
+    })?;
+    let desc = RawDesc {
+        path: path.to_path_buf(),
+        dims: side.dims,
+        scalar: side.scalar,
+        endian: side.endian,
+        spacing: side.spacing,
+        header_bytes: side.header_bytes,
+    };
+    let mut meta = VolumeMeta::new(Format::Raw, Some(desc.scalar));
+    if let Some(m) = &side.modality {
+        meta = meta.with_modality(m);
+    }
+    Ok(Loaded::new(load_raw(&desc)?, meta))
+}
+
 /// Reads a raw file. The file must hold exactly `header_bytes` plus the samples `dims` need.
 pub fn load_raw(desc: &RawDesc) -> Result<Volume, VolumeError> {
     let count = checked_voxel_count(desc.dims)?;
@@ -154,7 +207,10 @@ pub fn load_raw(desc: &RawDesc) -> Result<Volume, VolumeError> {
     }
     let mut reader = BufReader::new(file);
     reader.seek(SeekFrom::Start(desc.header_bytes)).map_err(io_err)?;
+    let bar = super::read::progress_bar(expected_bytes, &desc.path);
+    let mut reader = bar.wrap_read(reader);
     let (data, bytes_read) = read_samples(&mut reader, count, desc.scalar, desc.endian, count).map_err(io_err)?;
+    bar.finish_and_clear();
     if data.len() < count {
         // The file shrank between the size check and the read.
         return Err(VolumeError::Truncated {
@@ -311,6 +367,23 @@ mod tests {
     fn absurd_dims_fail_before_touching_the_file() {
         let d = desc(PathBuf::from("does-not-exist.raw"), [1_000_000; 3], ScalarType::U8);
         assert!(matches!(load_raw(&d), Err(VolumeError::TooLarge { .. })));
+    }
+
+    #[test]
+    fn sidecar_gives_layout_spacing_and_modality() {
+        let dir = ScratchDir::new("raw-sidecar");
+        let bytes: Vec<u8> = [-1000i16, 0, 40, 1200].iter().flat_map(|v| v.to_be_bytes()).collect();
+        let path = dir.write("head.raw", &bytes);
+        let side =
+            r#"{"dims": [2, 2, 1], "scalar": "i16", "endian": "big", "spacing": [0.5, 0.5, 3], "modality": "CT"}"#;
+        dir.write("head.raw.json", side.as_bytes());
+        let loaded = crate::volume::open(&path).expect("load");
+        assert_eq!(loaded.volume.data, vec![-1000.0, 0.0, 40.0, 1200.0]);
+        assert_eq!(loaded.volume.spacing, [0.5, 0.5, 3.0]);
+        assert_eq!(loaded.meta.units, crate::volume::Units::Hounsfield);
+        dir.write("head.raw.json", br#"{"dims": [2, 2], "scalar": "i16"}"#);
+        let err = crate::volume::open(&path).unwrap_err().to_string();
+        assert!(err.contains("head.raw.json") && err.contains("raw sidecar"), "{err}");
     }
 
     #[test]

@@ -33,3 +33,46 @@ impl Drop for ScratchDir {
         let _ = std::fs::remove_dir_all(&self.root);
     }
 }
+
+use super::{Endian, ScalarType};
+
+/// Test values per type, chosen to include the extremes of each range.
+pub fn test_values(scalar: ScalarType) -> Vec<f64> {
+    match scalar {
+        ScalarType::U8 => vec![0.0, 1.0, 127.0, 128.0, 255.0],
+        ScalarType::I8 => vec![-128.0, -1.0, 0.0, 1.0, 127.0],
+        ScalarType::U16 => vec![0.0, 1.0, 1234.0, 40000.0, 65535.0],
+        ScalarType::I16 => vec![-32768.0, -1234.0, 0.0, 258.0, 32767.0],
+        ScalarType::U32 => vec![0.0, 1.0, 70000.0, 16777216.0, 4294967295.0],
+        ScalarType::I32 => vec![-2147483648.0, -70000.0, 0.0, 5.0, 2147483647.0],
+        ScalarType::F32 => vec![-1.5, 0.0, 0.1, 3.25e10, -7.0e-12],
+        ScalarType::F64 => vec![-1.5, 1.0 / 3.0, 0.0, 2.0e30, -4.5e-20],
+    }
+}
+
+/// Encodes values as `scalar` samples in the given byte order.
+pub fn encode_values(values: &[f64], scalar: ScalarType, endian: Endian) -> Vec<u8> {
+    let big = endian == Endian::Big;
+    macro_rules! bytes {
+        ($v:expr) => {
+            if big {
+                $v.to_be_bytes().to_vec()
+            } else {
+                $v.to_le_bytes().to_vec()
+            }
+        };
+    }
+    values
+        .iter()
+        .flat_map(|&value| match scalar {
+            ScalarType::U8 => bytes!(value as u8),
+            ScalarType::I8 => bytes!(value as i8),
+            ScalarType::U16 => bytes!(value as u16),
+            ScalarType::I16 => bytes!(value as i16),
+            ScalarType::U32 => bytes!(value as u32),
+            ScalarType::I32 => bytes!(value as i32),
+            ScalarType::F32 => bytes!(value as f32),
+            ScalarType::F64 => bytes!(value),
+        })
+        .collect()
+}

@@ -44,6 +44,8 @@ pub(super) struct NrrdHeader {
     pub data_file: Option<PathBuf>,
     pub line_skip: u64,
     pub byte_skip: u64,
+    /// Value of a `modality:=` key/value pair (CT, MR, ...).
+    pub modality: Option<String>,
 }
 
 /// Fields as found, before checking that the required ones are present.
@@ -59,6 +61,7 @@ struct Fields {
     data_file: Option<PathBuf>,
     line_skip: u64,
     byte_skip: u64,
+    modality: Option<String>,
 }
 
 /// Reads the header from `reader`, leaving it at the first byte after the blank line that
@@ -98,8 +101,11 @@ pub(super) fn read_header<R: BufRead>(reader: &mut R, path: &Path) -> Result<Nrr
         let Some((key, value)) = line.split_once(':') else {
             return Err(header_err(line_no, format!("expected 'field: value', found '{line}'")));
         };
-        // "key:=value" lines are free-form key/value pairs with no meaning for reading.
-        if value.starts_with('=') {
+        // "key:=value" lines are free-form key/value pairs; only the modality means something here.
+        if let Some(kv) = value.strip_prefix('=') {
+            if key.trim().eq_ignore_ascii_case("modality") {
+                fields.modality = Some(kv.trim().to_string());
+            }
             continue;
         }
         parse_field(&mut fields, key.trim(), value.trim(), path).map_err(|e| match e {
@@ -205,6 +211,7 @@ fn finish(fields: Fields, path: &Path) -> Result<NrrdHeader, VolumeError> {
         data_file: fields.data_file,
         line_skip: fields.line_skip,
         byte_skip: fields.byte_skip,
+        modality: fields.modality,
     })
 }
 

@@ -13,7 +13,7 @@ use flate2::read::MultiGzDecoder;
 
 use self::header::{Encoding, NrrdHeader};
 use super::decode::read_samples;
-use super::{checked_voxel_count, dims_text, Volume, VolumeError};
+use super::{checked_voxel_count, dims_text, Format, Loaded, Volume, VolumeError, VolumeMeta};
 
 pub use self::write::write_nrrd;
 
@@ -26,6 +26,11 @@ const MAX_TOKEN_BYTES: usize = 128;
 
 /// Loads a `.nrrd` (attached data) or `.nhdr` (detached data) file.
 pub fn load_nrrd(path: &Path) -> Result<Volume, VolumeError> {
+    open_nrrd(path).map(|loaded| loaded.volume)
+}
+
+/// Loads a NRRD file with its metadata: a `modality:=CT` key/value pair marks Hounsfield units.
+pub fn open_nrrd(path: &Path) -> Result<Loaded, VolumeError> {
     let file = File::open(path).map_err(io_error(path))?;
     let mut reader = BufReader::new(file);
     let header = header::read_header(&mut reader, path)?;
@@ -37,7 +42,11 @@ pub fn load_nrrd(path: &Path) -> Result<Volume, VolumeError> {
             read_data(BufReader::new(file), data_path, &header, count)?
         }
     };
-    Volume::new(header.dims, header.spacing, data)
+    let mut meta = VolumeMeta::new(Format::Nrrd, Some(header.scalar));
+    if let Some(modality) = &header.modality {
+        meta = meta.with_modality(modality);
+    }
+    Ok(Loaded::new(Volume::new(header.dims, header.spacing, data)?, meta))
 }
 
 fn io_error(path: &Path) -> impl Fn(io::Error) -> VolumeError + '_ {
@@ -83,8 +92,10 @@ fn read_data(
                 );
             }
             reader.seek(SeekFrom::Start(data_start)).map_err(&io_err)?;
-            let (data, read) =
-                read_samples(&mut reader, count, header.scalar, header.endian, count).map_err(&io_err)?;
+            let bar = crate::volume::read::progress_bar(expected_bytes, data_path);
+            let (data, read) = read_samples(&mut bar.wrap_read(reader), count, header.scalar, header.endian, count)
+                .map_err(&io_err)?;
+            bar.finish_and_clear();
             if data.len() < count {
                 return Err(truncated("NRRD data in", read));
             }

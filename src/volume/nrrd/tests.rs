@@ -225,3 +225,28 @@ fn missing_data_file_is_io_error() {
     assert!(matches!(err, VolumeError::Io { .. }), "{err}");
     assert!(err.to_string().contains("nowhere.raw"), "{err}");
 }
+
+#[test]
+fn every_scalar_type_and_endianness_round_trips() {
+    use crate::volume::test_support::{encode_values, test_values};
+    use crate::volume::{Endian, ScalarType};
+    let dir = ScratchDir::new("nrrd-types");
+    for scalar in ScalarType::ALL {
+        for (endian, name) in [(Endian::Little, "little"), (Endian::Big, "big")] {
+            let values = test_values(scalar);
+            let data = encode_values(&values, scalar, endian);
+            let header = format!(
+                "NRRD0004\ntype: {scalar}\ndimension: 3\nsizes: {} 1 1\nendian: {name}\nencoding: raw\n\
+                 space directions: (0.5,0,0) (0,1,0) (0,0,5)\nmodality:=CT\n\n",
+                values.len()
+            );
+            let path = dir.write(&format!("{scalar}-{name}.nrrd"), &attached(&header, &data));
+            let loaded = super::open_nrrd(&path).unwrap_or_else(|e| panic!("{scalar} {name}: {e}"));
+            let expected: Vec<f32> = values.iter().map(|&v| v as f32).collect();
+            assert_eq!(loaded.volume.data, expected, "{scalar} {name}");
+            assert_eq!(loaded.volume.spacing, [0.5, 1.0, 5.0]);
+            assert_eq!(loaded.meta.units, crate::volume::Units::Hounsfield);
+            assert_eq!(loaded.meta.scalar, Some(scalar));
+        }
+    }
+}

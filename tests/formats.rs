@@ -1,0 +1,134 @@
+//! Volume data on the GPU: anisotropic spacing is honoured, an η volume on another grid is
+//! resampled, oversized volumes are downsampled (or refused), time-series frames load.
+
+mod common;
+
+use caustica::render::{PreparedScene, RenderRequest};
+use caustica::scene::{Projection, VolumeSource};
+use caustica::volume::Volume;
+
+use common::{head_on_scene, plain_tf, prepared, Gpu};
+
+/// Bounding box (columns, rows) of the pixels brighter than the black background.
+fn silhouette(pixels: &[[f32; 4]], size: usize) -> (usize, usize) {
+    let (mut x0, mut x1, mut y0, mut y1) = (size, 0, size, 0);
+    for y in 0..size {
+        for x in 0..size {
+            if pixels[y * size + x][0] > 0.05 {
+                x0 = x0.min(x);
+                x1 = x1.max(x);
+                y0 = y0.min(y);
+                y1 = y1.max(y);
+            }
+        }
+    }
+    assert!(x1 >= x0 && y1 >= y0, "nothing visible");
+    (x1 - x0 + 1, y1 - y0 + 1)
+}
+
+#[test]
+fn anisotropic_spacing_is_not_squashed() {
+    // 32 × 32 × 8 voxels of 1 × 1 × 4 mm: a 32 mm cube in space, a flat slab in voxels.
+    let dims = [32, 32, 8];
+    let data = vec![1.0; 32 * 32 * 8];
+    let cube = Volume::new(dims, [1.0, 1.0, 4.0], data).expect("volume");
+    let tf = plain_tf(vec![[0.0, 0.0], [0.5, 1.0]], vec![[0.0, 1.0, 1.0, 1.0]]);
+    let mut scene = head_on_scene(&tf);
+    // Seen from the side (along x) the image shows y vertically and z horizontally.
+    scene.camera.yaw_deg = 90.0;
+    scene.camera.projection = Projection::Orthographic;
+    let mut gpu = Gpu::new();
+    let size = 64;
+    let out = gpu.render(&prepared(scene, cube, tf), &RenderRequest::new(size, size));
+    let (width, height) = silhouette(&out.image.pixels, size as usize);
+    // Orthographic at zoom 1: the image spans the bounding diameter, √3 · 32 mm.
+    let px_per_mm = size as f32 / (3.0f32.sqrt() * 32.0);
+    let cube_px = 32.0 * px_per_mm;
+    // Linear filtering with a zero border lets each face fade out over half a voxel outside
+    // the box, so a side may look up to one voxel (4 mm along z, 1 mm along y) larger, plus a
+    // pixel of rounding. Squashed into voxel units, the 8-voxel depth would be 9 px wide.
+    let fits = |px: usize, voxel_mm: f32| {
+        let px = px as f32;
+        px >= cube_px - 1.0 && px <= cube_px + voxel_mm * px_per_mm + 1.0
+    };
+    assert!(
+        fits(width, 4.0),
+        "width {width} px: the 32 mm depth along z should span {cube_px:.1} px"
+    );
+    assert!(
+        fits(height, 1.0),
+        "height {height} px: the 32 mm height should span {cube_px:.1} px"
+    );
+}
+
+#[test]
+fn eta_volume_on_another_grid_is_resampled() {
+    let dir = std::env::temp_dir().join(format!("caustica-formats-eta-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let main = Volume::new([32, 32, 32], [1.0; 3], vec![0.5; 32 * 32 * 32]).unwrap();
+    let eta = Volume::new([16, 16, 16], [2.0; 3], (0..4096).map(|i| (i % 16) as f32).collect()).unwrap();
+    let (main_path, eta_path) = (dir.join("main.nrrd"), dir.join("eta.nrrd"));
+    caustica::volume::nrrd::write_nrrd(&main_path, &main, false).unwrap();
+    caustica::volume::nrrd::write_nrrd(&eta_path, &eta, false).unwrap();
+    let tf = plain_tf(vec![[0.0, 0.0]], vec![[0.0, 1.0, 1.0, 1.0]]);
+    let mut scene = head_on_scene(&tf);
+    scene.volume = VolumeSource::File { path: main_path };
+    scene.eta_volume = Some(VolumeSource::File { path: eta_path });
+    let p = PreparedScene::load(&scene).expect("a different grid is resampled, not refused");
+    let resampled = p.eta_volume.as_ref().expect("eta volume");
+    assert_eq!(resampled.dims, [32, 32, 32]);
+    assert_eq!(resampled.extent(), p.volume.extent());
+    // The ramp along x survives: ends near 0 and 15, increasing.
+    assert!(resampled.get(0, 5, 5) < 0.5 && resampled.get(31, 5, 5) > 14.5);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn oversized_volume_is_downsampled_or_refused() {
+    let tf = plain_tf(vec![[0.0, 0.0], [1.0, 0.5]], vec![[0.0, 1.0, 1.0, 1.0]]);
+    let vol = common::sphere(48, 0.3, 1.0);
+    let scene = head_on_scene(&tf);
+    let mut refused = prepared(scene.clone(), vol.clone(), tf.clone());
+    let err = refused.fit_to_device(32, u64::MAX, false).unwrap_err().to_string();
+    assert!(err.contains("48×48×48") && err.contains("32 texels"), "{err}");
+    let mut p = prepared(scene, vol, tf);
+    assert_eq!(p.fit_to_device(32, u64::MAX, true).unwrap(), Some([32, 32, 32]));
+    assert_eq!(p.volume.extent(), [48.0; 3]);
+    // Byte budget: 2 bytes per voxel, 16³ voxels allowed.
+    assert_eq!(
+        p.fit_to_device(1024, 2 * 16 * 16 * 16, true).unwrap(),
+        Some([16, 16, 16])
+    );
+    let mut gpu = Gpu::new();
+    let out = gpu.render(&p, &RenderRequest::new(32, 32));
+    assert_eq!(out.image.count_invalid(), (0, 0));
+    assert!(out.image.max_value() > 0.05, "the downsampled sphere is still visible");
+}
+
+#[test]
+fn time_series_scene_loads_the_selected_frame() {
+    let dir = std::env::temp_dir().join(format!("caustica-formats-series-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    for k in 0..3 {
+        let vol = Volume::new([4, 4, 4], [1.0; 3], vec![k as f32 * 10.0 + 1.0; 64]).unwrap();
+        caustica::volume::nrrd::write_nrrd(&dir.join(format!("t{k}.nrrd")), &vol, true).unwrap();
+    }
+    let scene_path = dir.join("series.toml");
+    std::fs::write(
+        &scene_path,
+        "transfer = { opacity = [[0.0, 0.0], [1.0, 0.5]] }\n[volume]\nkind = \"series\"\npattern = \"t*.nrrd\"\nframe = 1\n",
+    )
+    .unwrap();
+    let scene = caustica::scene::Scene::load(&scene_path).expect("series scene");
+    assert_eq!(scene.volume.series().unwrap().map(|s| s.len()), Some(3));
+    let mut p = PreparedScene::load(&scene).expect("frame 1 loads");
+    assert_eq!(p.volume.data[0], 11.0);
+    p.load_frame(2).expect("frame 2 loads");
+    assert_eq!(p.volume.data[0], 21.0);
+    assert!(p
+        .load_frame(3)
+        .unwrap_err()
+        .to_string()
+        .contains("frame 3 does not exist"));
+    let _ = std::fs::remove_dir_all(&dir);
+}
