@@ -14,7 +14,7 @@ pub struct Series<'a> {
 const WIDTH: u32 = 960;
 const HEIGHT: u32 = 600;
 const LEFT: i64 = 90;
-const RIGHT: i64 = 210;
+const RIGHT: i64 = 240;
 const TOP: i64 = 50;
 const BOTTOM: i64 = 70;
 const PALETTE: [[u8; 3]; 8] = [
