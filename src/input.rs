@@ -249,3 +249,141 @@ pub fn fit_to_device(
 ) -> Result<Option<[usize; 3]>, RenderError> {
     prepared.fit_to_device(ctx.info.max_image_3d, ctx.device_local_bytes() / 2, allow)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::volume::nrrd::write_nrrd;
+    use crate::volume::Volume;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Cli {
+        #[command(flatten)]
+        input: InputArgs,
+    }
+
+    fn args(list: &[&str]) -> InputArgs {
+        Cli::try_parse_from(std::iter::once("caustica").chain(list.iter().copied()))
+            .expect("valid options")
+            .input
+    }
+
+    struct Scratch(PathBuf);
+
+    impl Scratch {
+        fn new(tag: &str) -> Scratch {
+            let dir = std::env::temp_dir().join(format!("caustica-input-{tag}-{}", std::process::id()));
+            let _ = std::fs::remove_dir_all(&dir);
+            std::fs::create_dir_all(&dir).unwrap();
+            Scratch(dir)
+        }
+
+        fn s(&self, name: &str) -> String {
+            self.0.join(name).to_str().unwrap().to_string()
+        }
+    }
+
+    impl Drop for Scratch {
+        fn drop(&mut self) {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
+
+    /// A 12³ volume of values `offset + 0..50` in the data's own units and one outlier at
+    /// `offset + 10000`, which the percentile window leaves out (1 voxel of 1728 < 0.5 %).
+    fn write_volume(path: &str, offset: f32) {
+        let n = 12;
+        let data = (0..n * n * n)
+            .map(|i| offset + if i == 0 { 10000.0 } else { (i % 50) as f32 })
+            .collect();
+        let v = Volume::new([n, n, n], [1.0; 3], data).unwrap();
+        write_nrrd(Path::new(path), &v, false).unwrap();
+    }
+
+    /// A bare volume file gets the transfer functions of its histogram, and the scene carries
+    /// them and their window: rendering the scene alone gives the same functions and window.
+    #[test]
+    fn bare_file_gets_default_transfer_and_window_in_the_scene() {
+        let dir = Scratch::new("bare");
+        let file = dir.s("v.nrrd");
+        write_volume(&file, 0.0);
+        let a = args(&[&file]);
+        assert!(a.wants_default_transfer());
+        let Prepared { prepared, notes } = a.prepare().unwrap();
+        let plain = PreparedScene::load(&a.load_scene(&mut Vec::new()).unwrap()).unwrap();
+        let window = plain.volume_info.default_window;
+        assert_eq!(prepared.scene.window, Some(window));
+        assert_ne!(
+            window, plain.volume.value_range,
+            "a histogram window, not the value range"
+        );
+        let expected = crate::transfer::default_for(&plain.volume_info.meta, &plain.volume_info.histogram, window);
+        assert_ne!(expected, TransferFunctions::default());
+        assert_eq!(prepared.tf, expected);
+        assert_eq!(prepared.scene.transfer, TransferSource::Inline(expected.clone()));
+        // The scene alone reproduces the view (what a saved scene is rendered from).
+        let again = PreparedScene::load(&prepared.scene).unwrap();
+        assert_eq!((again.window(), again.tf), (window, expected));
+        assert!(notes.iter().any(|n| n.starts_with("transfer functions:")), "{notes:?}");
+
+        // --window moves the window the defaults are made for.
+        let narrow = args(&[&file, "--window", "0,100"]).prepare().unwrap().prepared;
+        assert_eq!(narrow.scene.window, Some([0.0, 100.0]));
+        assert_eq!(
+            narrow.tf,
+            crate::transfer::default_for(&plain.volume_info.meta, &plain.volume_info.histogram, [0.0, 100.0])
+        );
+    }
+
+    /// An imported colour map replaces the defaults and its data-unit domain becomes the
+    /// window; --window still wins over it.
+    #[test]
+    fn transfer_import_sets_the_window() {
+        let dir = Scratch::new("import");
+        let file = dir.s("v.nrrd");
+        write_volume(&file, 0.0);
+        let map = dir.s("map.json");
+        std::fs::write(
+            &map,
+            r#"[{"Name": "A", "RGBPoints": [-1000, 0, 0, 0, 1000, 1, 0.5, 0], "Points": [-1000, 0, 0.5, 0, 1000, 1, 0.5, 0]}]"#,
+        )
+        .unwrap();
+        let a = args(&[&file, "--transfer", &map]);
+        assert!(!a.wants_default_transfer());
+        let prepared = a.prepare().unwrap().prepared;
+        let imported = crate::transfer::load_any(Path::new(&map)).unwrap();
+        assert_eq!(imported.domain, Some([-1000.0, 1000.0]));
+        assert_eq!(prepared.scene.window, imported.domain);
+        assert_eq!(prepared.window(), [-1000.0, 1000.0]);
+        assert_eq!(prepared.tf, imported.tf);
+        let windowed = args(&[&file, "--transfer", &map, "--window", "5,50"])
+            .prepare()
+            .unwrap();
+        assert_eq!(windowed.prepared.window(), [5.0, 50.0]);
+    }
+
+    /// --time picks a frame of a pattern; its defaults come from that frame's histogram.
+    #[test]
+    fn time_selects_a_frame_and_needs_a_series() {
+        let dir = Scratch::new("series");
+        for (k, offset) in [(0, 0.0), (1, 5000.0), (2, -3000.0)] {
+            write_volume(&dir.s(&format!("t{k}.nrrd")), offset);
+        }
+        let pattern = dir.s("t*.nrrd");
+        let Prepared { prepared, notes } = args(&[&pattern, "--time", "1.2"]).prepare().unwrap();
+        assert!(matches!(prepared.scene.volume, VolumeSource::Series { frame: 1, .. }));
+        assert!(
+            notes[0].starts_with("frame 1 of 3: ") && notes[0].ends_with("t1.nrrd"),
+            "{notes:?}"
+        );
+        let w = prepared.scene.window.unwrap();
+        assert!(w[0] >= 5000.0 && w[1] <= 6000.0, "window {w:?} is frame 1's");
+        assert!(
+            args(&[&pattern, "--time", "3"]).prepare().is_err(),
+            "past the last frame"
+        );
+        let single = args(&[&dir.s("t0.nrrd"), "--time", "0"]).load_scene(&mut Vec::new());
+        assert!(matches!(single, Err(InputError::Option(m)) if m.contains("time series")));
+    }
+}

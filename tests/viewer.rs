@@ -279,6 +279,71 @@ fn resized_window_renders_at_the_new_size() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// A bare time series (three small NRRD frames of different volumes) opens as `caustica
+/// render` shows it: same frame (--time), same default transfer functions and window, and the
+/// saved scene keeps the frame. Rendering another frame fails the comparison.
+#[test]
+fn time_series_frame_matches_the_offscreen_render() {
+    let dir = scratch("series");
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let limit = Duration::from_secs(60);
+    for (k, name) in ["ball-lens", "glass", "supernova"].iter().enumerate() {
+        let path = dir.join(format!("t{k}.nrrd"));
+        let args = ["dataset", name, "-o", &s(&path), "--resolution", "24", "--raw"];
+        assert_ok(&caustica(&args, None, limit), "caustica dataset");
+    }
+    let pattern = s(&dir.join("t*.nrrd"));
+    let (capture, saved, reference, other) = (
+        dir.join("window.png"),
+        dir.join("saved.toml"),
+        dir.join("render.png"),
+        dir.join("frame0.png"),
+    );
+    let x = Xvfb::start();
+    let out = caustica(
+        &[
+            "view",
+            &pattern,
+            "--time",
+            "1",
+            "--size",
+            "64x48",
+            "--no-panel",
+            "--exit-after-idle",
+            "--screenshot",
+            &s(&capture),
+            "--save-scene",
+            &s(&saved),
+        ],
+        Some(&x.display),
+        Duration::from_secs(120),
+    );
+    let stderr = assert_ok(&out, "caustica view");
+    assert!(stderr.contains("frame 1 of 3"), "{stderr}");
+    drop(x);
+    let render = |time: &str, output: &Path| {
+        let args = ["render", &pattern, "--time", time, "--size", "64x48", "-o", &s(output)];
+        assert_ok(&caustica(&args, None, limit), "caustica render");
+    };
+    render("1", &reference);
+    assert!(
+        same_image(&capture, &reference),
+        "the window differs from `caustica render --time 1`"
+    );
+    let text = std::fs::read_to_string(&saved).unwrap();
+    assert!(text.contains("frame = 1") && text.contains("window = ["), "{text}");
+    let from_saved = dir.join("saved.png");
+    let args = ["render", &s(&saved), "--size", "64x48", "-o", &s(&from_saved)];
+    assert_ok(&caustica(&args, None, limit), "caustica render of the saved scene");
+    assert!(
+        same_image(&from_saved, &capture),
+        "the saved scene renders differently from the window"
+    );
+    render("0", &other);
+    assert!(!same_image(&other, &capture), "frame 0 passes the comparison");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 #[test]
 fn without_a_display_the_viewer_fails_with_a_clear_message() {
     let out = caustica(

@@ -318,4 +318,62 @@ mod tests {
         assert_eq!(ctx.validation_errors(), 0, "{:?}", ctx.validation_messages());
         std::fs::remove_dir_all(&dir).unwrap();
     }
+
+    /// A request for another frame of a time series loads it on the render thread: the
+    /// window first gets that frame's histogram, then the image, which is the direct render
+    /// of the frame.
+    #[test]
+    fn a_new_frame_is_loaded_with_its_histogram() {
+        let dir = std::env::temp_dir().join(format!("caustica-worker-series-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        for (k, name) in ["ball-lens", "glass"].iter().enumerate() {
+            let v = crate::volume::procedural::generate(name, 16).unwrap();
+            crate::volume::nrrd::write_nrrd(&dir.join(format!("t{k}.nrrd")), &v, false).unwrap();
+        }
+        let mut scene = small_scene();
+        scene.volume = VolumeSource::Series {
+            files: Vec::new(),
+            pattern: Some(dir.join("t*.nrrd")),
+            frame: 0,
+        };
+        scene.window = Some([0.0, 1.0]);
+        let ctx = Context::new(&ContextDesc::from_env(DeviceSelector::Auto)).expect("Vulkan device");
+        let mut later = scene.clone();
+        later.volume.set_frame(1);
+        let frame1 = PreparedScene::load(&later).unwrap();
+        let expected_bars = crate::app::panel::histogram(&frame1.volume.data, [0.0, 1.0]);
+        let mut direct = Renderer::new(ctx.clone()).unwrap();
+        let expected = direct.render(&frame1, &RenderRequest::new(32, 24)).unwrap().image;
+        drop(direct);
+
+        let prepared = PreparedScene::load(&scene).unwrap();
+        assert_ne!(
+            crate::app::panel::histogram(&prepared.volume.data, [0.0, 1.0]),
+            expected_bars,
+            "the frames differ"
+        );
+        let mut worker = Worker::start(Renderer::new(ctx.clone()).unwrap(), prepared, true, || {});
+        let job = Job { version: 1, level: 0 };
+        worker.send(Request::Frame {
+            job,
+            scene: Box::new(later),
+            width: 32,
+            height: 24,
+            cancel: Arc::new(AtomicBool::new(false)),
+        });
+        let mut bars = None;
+        let image = loop {
+            match worker.replies.recv_timeout(Duration::from_secs(120)).expect("a reply") {
+                Reply::Volume { frame, histogram } => bars = Some((frame, histogram)),
+                Reply::Frame { image, .. } => break image,
+                Reply::Failed { message, .. } => panic!("{message}"),
+                _ => panic!("unexpected reply"),
+            }
+        };
+        worker.stop();
+        assert_eq!(bars, Some((1, expected_bars)), "the histogram of frame 1 comes first");
+        assert_eq!(image.pixels, expected.pixels, "the image is the render of frame 1");
+        assert_eq!(ctx.validation_errors(), 0, "{:?}", ctx.validation_messages());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }
