@@ -184,6 +184,15 @@ impl ViewState {
         if pressed(Key::R, none) {
             self.scene.camera = self.home_camera.clone();
         }
+        if !self.series.is_empty() {
+            let frame = self.frame();
+            if pressed(Key::PageDown, none) && frame + 1 < self.series.len() {
+                self.scene.volume.set_frame(frame + 1);
+            }
+            if pressed(Key::PageUp, none) && frame > 0 {
+                self.scene.volume.set_frame(frame - 1);
+            }
+        }
         if pressed(Key::P, none) || pressed(Key::F12, none) {
             actions.push(self.screenshot_action());
         }
@@ -521,6 +530,7 @@ pub const HELP: &[(&str, &str)] = &[
     ("wheel, + / -", "zoom"),
     ("arrows", "orbit by 5°"),
     ("R", "reset camera"),
+    ("Page Down / Page Up", "time series: next / previous frame"),
     ("Ctrl+Z / Ctrl+Y, Ctrl+Shift+Z", "undo / redo transfer-function edits"),
     ("Delete", "delete the selected control point"),
     ("P, F12", "screenshot (full quality, offscreen)"),

@@ -281,4 +281,13 @@ fn time_slider_appears_for_a_series_and_selects_the_frame() {
     assert_eq!(frame_of(&h.state.scene_for_render()), 2);
     h.click(Pos2::new(r.left() + 1.0, r.center().y), PointerButton::Primary);
     assert_eq!(frame_of(&h.state.scene_for_render()), 0);
+    // Page Down / Page Up step through the frames and stop at the ends.
+    h.key(Key::PageUp, Modifiers::NONE);
+    assert_eq!(h.state.frame(), 0);
+    for expected in [1, 2, 2] {
+        h.key(Key::PageDown, Modifiers::NONE);
+        assert_eq!(h.state.frame(), expected);
+    }
+    h.key(Key::PageUp, Modifiers::NONE);
+    assert_eq!(h.state.frame(), 1);
 }
