@@ -159,13 +159,17 @@ fn set_scene(
                 "the viewer cannot switch to another volume; open it with `caustica view FILE`".into(),
             ));
         };
-        let before = prepared.scene.volume.clone();
+        let before = (
+            std::mem::replace(&mut prepared.scene.volume, scene.volume.clone()),
+            prepared.volume.clone(),
+            prepared.volume_info.clone(),
+        );
         let loaded = prepared
             .load_frame(frame)
             .and_then(|()| crate::input::fit_to_device(prepared, renderer.context(), allow_downsample));
         if let Err(e) = loaded {
-            // The next request for this frame tries again.
-            prepared.scene.volume = before;
+            // Back to the frame that was there: the next request for this one tries again.
+            (prepared.scene.volume, prepared.volume, prepared.volume_info) = before;
             return Err(e);
         }
         let window = scene.window.unwrap_or(prepared.volume_info.default_window);
@@ -370,6 +374,24 @@ mod tests {
                 _ => panic!("unexpected reply"),
             }
         };
+        // A frame that cannot be read fails, and fails again when asked for again (the render
+        // thread does not take the frame it kept for the broken one).
+        std::fs::write(dir.join("t2.nrrd"), b"NRRD0004\nnot a header\n").unwrap();
+        let mut broken = scene.clone();
+        broken.volume.set_frame(2);
+        for version in [2, 3] {
+            worker.send(Request::Frame {
+                job: Job { version, level: 0 },
+                scene: Box::new(broken.clone()),
+                width: 32,
+                height: 24,
+                cancel: Arc::new(AtomicBool::new(false)),
+            });
+            match worker.replies.recv_timeout(Duration::from_secs(120)).expect("a reply") {
+                Reply::Failed { message, .. } => assert!(message.contains("t2.nrrd"), "{message}"),
+                _ => panic!("frame 2 is broken, yet the request did not fail"),
+            }
+        }
         worker.stop();
         assert_eq!(bars, Some((1, expected_bars)), "the histogram of frame 1 comes first");
         assert_eq!(image.pixels, expected.pixels, "the image is the render of frame 1");
