@@ -10,6 +10,7 @@
 //! | [`transfer`] | the four transfer functions (α, c, η, m), their JSON format, importers (ParaView, Inviwo, Slicer), defaults from a histogram, pre-integration |
 //! | [`scene`] | everything one image depends on; TOML scene files; built-in scenes |
 //! | [`gpu`] | a thin documented layer over ash: device, memory, images, pipelines, naga shaders |
+//! | [`input`] | what `render` and `view` read (scene, volume file, series, raw, built-in) and their shared options → a loaded scene |
 //! | [`render`] | the method on top of `gpu`: planes, propagation, environment, output; `Features` |
 //! | [`reference`] | CPU renderers used to check the GPU one; the independent reference (f64, photons) |
 //! | [`bench`] | the speed–accuracy sweep: GPU frame times and errors against the reference |
@@ -21,6 +22,7 @@
 pub mod app;
 pub mod bench;
 pub mod gpu;
+pub mod input;
 pub mod reference;
 pub mod render;
 pub mod scene;

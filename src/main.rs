@@ -1,16 +1,16 @@
 //! The `caustica` command line: parse, call the library, map errors to exit codes.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{bail, Context as _, Result};
 use clap::{Parser, Subcommand};
 
 use caustica::gpu::{list_devices, Context, ContextDesc, DeviceSelector, GpuError};
-use caustica::render::{DebugView, PreparedScene, RenderError, RenderRequest, Renderer};
-use caustica::scene::{builtin, Precision, Scene, TransferSource, VolumeSource, BUILTIN_SCENES};
-use caustica::transfer::TransferFunctions;
-use caustica::volume::{self, Endian, RawDesc, ScalarType};
+use caustica::input::{fit_to_device, InputArgs, Prepared};
+use caustica::render::{DebugView, RenderError, RenderRequest, Renderer};
+use caustica::scene::{builtin, BUILTIN_SCENES};
+use caustica::volume;
 
 /// Exit codes (see README, "Errors and exit codes").
 const EXIT_INPUT: u8 = 1;
@@ -105,12 +105,8 @@ struct BenchArgs {
 
 #[derive(clap::Args)]
 struct RenderArgs {
-    /// A scene file (.toml), a volume file (see README, "Volume input"), a DICOM directory,
-    /// a time-series pattern with '*' (quote it), or raw data with --raw-dims.
-    input: Option<PathBuf>,
-    /// Render a built-in scene instead (see `caustica scenes`).
-    #[arg(long, conflicts_with = "input")]
-    scene: Option<String>,
+    #[command(flatten)]
+    input: InputArgs,
     /// Output image: .png (8-bit sRGB) or .exr (linear float).
     #[arg(short, long, default_value = "caustica.png")]
     output: PathBuf,
@@ -129,43 +125,6 @@ struct RenderArgs {
     /// Print planes, ms per plane and total GPU time.
     #[arg(long)]
     timings: bool,
-    /// Override the scene's sample distance (multiple of the smallest voxel size).
-    #[arg(long)]
-    sample_distance: Option<f32>,
-    /// Override the storage precision of the light, colour and medium buffers: f16 or f32.
-    #[arg(long, value_parser = parse_precision)]
-    precision: Option<Precision>,
-    /// Override the resolution of a built-in scene's volume.
-    #[arg(long)]
-    resolution: Option<usize>,
-    /// Transfer functions replacing those of the scene: caustica JSON, ParaView colour map
-    /// JSON, Inviwo .itf or 3D Slicer presets.xml (FILE#NAME picks one preset).
-    #[arg(long)]
-    transfer: Option<PathBuf>,
-    /// Data window mapped onto the transfer functions, as LOW,HIGH in data units.
-    #[arg(long, value_parser = parse_window)]
-    window: Option<[f32; 2]>,
-    /// Time series: the frame to render (index, rounded to the nearest).
-    #[arg(long)]
-    time: Option<f32>,
-    /// Fail instead of downsampling a volume that exceeds the device's 3D-texture limits.
-    #[arg(long)]
-    no_downsample: bool,
-    /// Raw volume: dims as XxYxZ.
-    #[arg(long, value_parser = parse_dims)]
-    raw_dims: Option<[usize; 3]>,
-    /// Raw volume: scalar type (u8, i8, u16, i16, u32, i32, f32, f64).
-    #[arg(long, default_value = "u8")]
-    raw_type: String,
-    /// Raw volume: byte order.
-    #[arg(long, default_value = "little")]
-    raw_endian: String,
-    /// Raw volume: voxel spacing as X,Y,Z.
-    #[arg(long, value_parser = parse_spacing)]
-    raw_spacing: Option<[f32; 3]>,
-    /// Raw volume: bytes to skip at the start of the file.
-    #[arg(long, default_value_t = 0)]
-    raw_header: u64,
 }
 
 fn parse_size(s: &str) -> Result<(u32, u32), String> {
@@ -178,148 +137,17 @@ fn parse_size(s: &str) -> Result<(u32, u32), String> {
     Ok((w, h))
 }
 
-fn parse_dims(s: &str) -> Result<[usize; 3], String> {
-    let v: Vec<usize> = s
-        .split(['x', 'X'])
-        .map(|p| p.trim().parse::<usize>().map_err(|e| format!("'{p}': {e}")))
-        .collect::<Result<_, _>>()?;
-    v.try_into().map_err(|_| "expected XxYxZ, e.g. 256x256x108".to_string())
-}
-
-fn parse_spacing(s: &str) -> Result<[f32; 3], String> {
-    let v: Vec<f32> = s
-        .split(',')
-        .map(|p| p.trim().parse::<f32>().map_err(|e| format!("'{p}': {e}")))
-        .collect::<Result<_, _>>()?;
-    v.try_into().map_err(|_| "expected X,Y,Z, e.g. 0.5,0.5,2".to_string())
-}
-
-fn parse_precision(s: &str) -> Result<Precision, String> {
-    Precision::parse(s).ok_or_else(|| format!("'{s}': expected f16 or f32"))
-}
-
-fn parse_window(s: &str) -> Result<[f32; 2], String> {
-    let v: Vec<f32> = s
-        .split(',')
-        .map(|p| p.trim().parse::<f32>().map_err(|e| format!("'{p}': {e}")))
-        .collect::<Result<_, _>>()?;
-    match v[..] {
-        [lo, hi] if lo.is_finite() && hi.is_finite() && hi > lo => Ok([lo, hi]),
-        _ => Err("expected LOW,HIGH with LOW < HIGH, e.g. -1000,2000".to_string()),
-    }
-}
-
 fn parse_debug_view(s: &str) -> Result<DebugView, String> {
     DebugView::parse(s).ok_or_else(|| format!("'{s}': expected light, light-direction, intensity or medium"))
 }
 
-/// A scene for a bare volume file: default camera, light and transfer functions.
-fn scene_for_volume(args: &RenderArgs, path: &Path) -> Result<Scene> {
-    let volume = match args.raw_dims {
-        Some(dims) => VolumeSource::Raw(RawDesc {
-            path: path.to_path_buf(),
-            dims,
-            scalar: args.raw_type.parse::<ScalarType>()?,
-            endian: match args.raw_endian.as_str() {
-                "little" => Endian::Little,
-                "big" => Endian::Big,
-                other => bail!("--raw-endian '{other}': expected little or big"),
-            },
-            spacing: args.raw_spacing.unwrap_or([1.0; 3]),
-            header_bytes: args.raw_header,
-        }),
-        None if path.to_string_lossy().contains('*') => VolumeSource::Series {
-            files: Vec::new(),
-            pattern: Some(path.to_path_buf()),
-            frame: 0,
-        },
-        None => VolumeSource::File {
-            path: path.to_path_buf(),
-        },
-    };
-    Ok(Scene {
-        volume,
-        eta_volume: None,
-        window: None,
-        transfer: TransferSource::Inline(TransferFunctions::default()),
-        camera: Default::default(),
-        light: Default::default(),
-        shading: Default::default(),
-        clip: None,
-        environment: Default::default(),
-        quality: Default::default(),
-    })
-}
-
-fn load_scene(args: &RenderArgs) -> Result<Scene> {
-    let mut scene = match (&args.scene, &args.input) {
-        (Some(name), _) => builtin(name)?.scene,
-        (None, Some(path)) if path.extension().is_some_and(|e| e == "toml") => Scene::load(path)?,
-        (None, Some(path)) => scene_for_volume(args, path)?,
-        (None, None) => bail!("give a scene file, a volume file or --scene NAME (see `caustica scenes`)"),
-    };
-    if let Some(path) = &args.transfer {
-        let imported = caustica::transfer::load_any(path)?;
-        scene.transfer = TransferSource::Inline(imported.tf);
-        if imported.domain.is_some() {
-            scene.window = imported.domain;
-        }
-    }
-    if let Some(window) = args.window {
-        scene.window = Some(window);
-    }
-    select_time(&mut scene, args.time)?;
-    if let Some(d) = args.sample_distance {
-        scene.quality.sample_distance = d;
-    }
-    if let Some(p) = args.precision {
-        scene.quality.precision = p;
-    }
-    if let (Some(r), VolumeSource::Builtin { resolution, .. }) = (args.resolution, &mut scene.volume) {
-        *resolution = r;
-    }
-    scene.validate()?;
-    Ok(scene)
-}
-
-/// Applies `--time T` to a time-series volume.
-fn select_time(scene: &mut Scene, time: Option<f32>) -> Result<()> {
-    let Some(t) = time else { return Ok(()) };
-    match scene.volume.series()? {
-        Some(series) => {
-            let frame = series.frame_at(t)?;
-            scene.volume.set_frame(frame);
-            eprintln!("frame {frame} of {}: {}", series.len(), series.frames[frame].display());
-            Ok(())
-        }
-        None => bail!("--time needs a time series (a file pattern with '*' or kind = \"series\" in the scene)"),
-    }
-}
-
-/// True when the render input is a bare volume file (no scene, no --transfer): its transfer
-/// functions then come from its histogram.
-fn wants_default_transfer(args: &RenderArgs) -> bool {
-    let scene_file = args
-        .input
-        .as_ref()
-        .is_some_and(|p| p.extension().is_some_and(|e| e == "toml"));
-    args.scene.is_none() && !scene_file && args.transfer.is_none()
-}
-
 fn render(args: &RenderArgs) -> Result<()> {
-    let scene = load_scene(args)?;
-    let mut prepared = PreparedScene::load(&scene)?;
-    if wants_default_transfer(args) {
-        prepared.use_default_transfer();
-        eprintln!(
-            "transfer functions: {} (window {:?})",
-            prepared.tf.name.as_deref().unwrap_or("automatic"),
-            prepared.window()
-        );
+    let Prepared { mut prepared, notes } = args.input.prepare()?;
+    for note in notes {
+        eprintln!("{note}");
     }
     let ctx = Context::new(&ContextDesc::from_env(DeviceSelector::parse(&args.device)))?;
-    // Volume textures may use half the device-local memory; the rest is state and tables.
-    prepared.fit_to_device(ctx.info.max_image_3d, ctx.device_local_bytes() / 2, !args.no_downsample)?;
+    fit_to_device(&mut prepared, &ctx, !args.input.no_downsample)?;
     let mut renderer = Renderer::new(ctx.clone())?;
     let mut req = RenderRequest::new(args.size.0, args.size.1);
     req.progress = true;

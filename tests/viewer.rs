@@ -279,6 +279,84 @@ fn resized_window_renders_at_the_new_size() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// Three 24³ frames of different built-in volumes, t0..t2.nrrd in `dir`; returns the pattern.
+fn write_series(dir: &Path) -> String {
+    for (k, name) in ["ball-lens", "glass", "supernova"].iter().enumerate() {
+        let path = dir.join(format!("t{k}.nrrd"));
+        let args = [
+            "dataset",
+            name,
+            "-o",
+            path.to_str().unwrap(),
+            "--resolution",
+            "24",
+            "--raw",
+        ];
+        assert_ok(&caustica(&args, None, Duration::from_secs(60)), "caustica dataset");
+    }
+    dir.join("t*.nrrd").to_str().unwrap().to_string()
+}
+
+/// A bare time series (three small NRRD frames of different volumes) opens as `caustica
+/// render` shows it: same frame (--time), same default transfer functions and window, and the
+/// saved scene keeps the frame. Rendering another frame fails the comparison.
+#[test]
+fn time_series_frame_matches_the_offscreen_render() {
+    let dir = scratch("series");
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let limit = Duration::from_secs(60);
+    let pattern = write_series(&dir);
+    let (capture, saved, reference, other) = (
+        dir.join("window.png"),
+        dir.join("saved.toml"),
+        dir.join("render.png"),
+        dir.join("frame0.png"),
+    );
+    let x = Xvfb::start();
+    let out = caustica(
+        &[
+            "view",
+            &pattern,
+            "--time",
+            "1",
+            "--size",
+            "64x48",
+            "--no-panel",
+            "--exit-after-idle",
+            "--screenshot",
+            &s(&capture),
+            "--save-scene",
+            &s(&saved),
+        ],
+        Some(&x.display),
+        Duration::from_secs(120),
+    );
+    let stderr = assert_ok(&out, "caustica view");
+    assert!(stderr.contains("frame 1 of 3"), "{stderr}");
+    drop(x);
+    let render = |time: &str, output: &Path| {
+        let args = ["render", &pattern, "--time", time, "--size", "64x48", "-o", &s(output)];
+        assert_ok(&caustica(&args, None, limit), "caustica render");
+    };
+    render("1", &reference);
+    assert!(
+        same_image(&capture, &reference),
+        "the window differs from `caustica render --time 1`"
+    );
+    let text = std::fs::read_to_string(&saved).unwrap();
+    assert!(text.contains("frame = 1") && text.contains("window = ["), "{text}");
+    let from_saved = dir.join("saved.png");
+    let args = ["render", &s(&saved), "--size", "64x48", "-o", &s(&from_saved)];
+    assert_ok(&caustica(&args, None, limit), "caustica render of the saved scene");
+    assert!(
+        same_image(&from_saved, &capture),
+        "the saved scene renders differently from the window"
+    );
+    render("0", &other);
+    assert!(!same_image(&other, &capture), "frame 0 passes the comparison");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 #[test]
 fn without_a_display_the_viewer_fails_with_a_clear_message() {
     let out = caustica(
@@ -484,6 +562,75 @@ fn mouse_drag_orbits_and_q_quits_cleanly() {
     assert!(
         same_image(&capture, &reference),
         "the window after the drag differs from the saved scene's render"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Stepping through a series with Page Down (real key presses through the X server): the
+/// render thread loads the frames, the view settles on frame 2, the saved scene keeps it and
+/// the window shows `caustica render --time 2`.
+#[test]
+fn page_down_steps_through_a_series() {
+    let dir = scratch("step");
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    let pattern = write_series(&dir);
+    let (capture, saved, reference, log) = (
+        dir.join("window.png"),
+        dir.join("saved.toml"),
+        dir.join("render.png"),
+        dir.join("stderr.txt"),
+    );
+    let x = Xvfb::start();
+    let args = [
+        "view",
+        &pattern,
+        "--size",
+        "64x48",
+        "--no-panel",
+        "--screenshot",
+        &s(&capture),
+        "--save-scene",
+        &s(&saved),
+    ];
+    let child = spawn(&args, Some(&x.display), &log);
+    let read = |p: &Path| std::fs::read_to_string(p).unwrap_or_default();
+    let wait_for = |what: &str, done: &dyn Fn() -> bool| {
+        let start = Instant::now();
+        while !done() {
+            assert!(
+                start.elapsed() < Duration::from_secs(90),
+                "timed out waiting for {what}\n{}",
+                read(&log)
+            );
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    };
+    wait_for("the first full frame", &|| read(&saved).contains("frame = 0"));
+    let input = input::X::find_window(&x.display);
+    const PAGE_DOWN: u32 = 0xff56;
+    input.key(PAGE_DOWN);
+    input.key(PAGE_DOWN);
+    // The capture of a settled frame is written just before its scene.
+    wait_for("the full frame of frame 2", &|| read(&saved).contains("frame = 2"));
+    input.key(u32::from(b'q'));
+    let (status, stderr) = finish(child, &log, Duration::from_secs(60), "caustica view");
+    assert!(status.success(), "caustica view failed ({status}):\n{stderr}");
+    assert!(!stderr.contains("validation error"), "validation errors:\n{stderr}");
+    drop(x);
+    let args = [
+        "render",
+        &pattern,
+        "--time",
+        "2",
+        "--size",
+        "64x48",
+        "-o",
+        &s(&reference),
+    ];
+    assert_ok(&caustica(&args, None, Duration::from_secs(60)), "caustica render");
+    assert!(
+        same_image(&capture, &reference),
+        "the window on frame 2 differs from `caustica render --time 2`"
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -25,30 +25,20 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context as _, Result};
 
 use crate::gpu::{Context, ContextDesc, DeviceSelector};
-use crate::render::{PreparedScene, Renderer};
-use crate::scene::{builtin, Scene, TransferSource, VolumeSource};
-use crate::transfer::TransferFunctions;
+use crate::input::{fit_to_device, InputArgs, Prepared};
+use crate::render::Renderer;
 
 /// `caustica view` options.
 #[derive(clap::Args, Debug)]
 pub struct ViewArgs {
-    /// A scene file (.toml) or a volume file (.nrrd, .nhdr).
-    pub input: Option<PathBuf>,
-    /// View a built-in scene instead (see `caustica scenes`).
-    #[arg(long, conflicts_with = "input")]
-    pub scene: Option<String>,
+    #[command(flatten)]
+    pub input: InputArgs,
     /// Window size, WIDTHxHEIGHT (pixels).
     #[arg(long, default_value = "1024x768", value_parser = parse_size)]
     pub size: (u32, u32),
     /// Vulkan device: index or name substring (see `caustica devices`).
     #[arg(long, default_value = "auto")]
     pub device: String,
-    /// Transfer functions (JSON), replacing those of the scene.
-    #[arg(long)]
-    pub transfer: Option<PathBuf>,
-    /// Override the resolution of a built-in scene's volume.
-    #[arg(long)]
-    pub resolution: Option<usize>,
     /// Start with the panel hidden (Tab shows it): the render fills the window.
     #[arg(long)]
     pub no_panel: bool,
@@ -85,34 +75,6 @@ fn parse_size(s: &str) -> Result<(u32, u32), String> {
     Ok((w, h))
 }
 
-fn load_scene(args: &ViewArgs) -> Result<Scene> {
-    let mut scene = match (&args.scene, &args.input) {
-        (Some(name), _) => builtin(name)?.scene,
-        (None, Some(path)) if path.extension().is_some_and(|e| e == "toml") => Scene::load(path)?,
-        (None, Some(path)) => Scene {
-            volume: VolumeSource::File { path: path.clone() },
-            eta_volume: None,
-            window: None,
-            transfer: TransferSource::Inline(TransferFunctions::default()),
-            camera: Default::default(),
-            light: Default::default(),
-            shading: Default::default(),
-            clip: None,
-            environment: Default::default(),
-            quality: Default::default(),
-        },
-        (None, None) => bail!("give a scene file, a volume file or --scene NAME (see `caustica scenes`)"),
-    };
-    if let Some(path) = &args.transfer {
-        scene.transfer = TransferSource::Inline(TransferFunctions::load(path)?);
-    }
-    if let (Some(r), VolumeSource::Builtin { resolution, .. }) = (args.resolution, &mut scene.volume) {
-        *resolution = r;
-    }
-    scene.validate()?;
-    Ok(scene)
-}
-
 /// Where the transfer-function presets are: `transfer_functions/` next to the working
 /// directory, else the one of the source tree this binary was built from.
 fn presets_dir() -> PathBuf {
@@ -126,20 +88,23 @@ fn presets_dir() -> PathBuf {
 
 /// Runs the viewer until the window is closed (or, with `--exit-after-idle`, settles).
 pub fn run(args: &ViewArgs) -> Result<()> {
-    let scene = load_scene(args)?;
-    let prepared = PreparedScene::load(&scene)?;
+    let Prepared { mut prepared, notes } = args.input.prepare()?;
+    for note in notes {
+        eprintln!("{note}");
+    }
+    let ctx = Context::new(&ContextDesc::from_env(DeviceSelector::parse(&args.device)))?;
+    let allow_downsample = !args.input.no_downsample;
+    fit_to_device(&mut prepared, &ctx, allow_downsample)?;
     let histogram = panel::histogram(&prepared.volume.data, prepared.window());
-    let mut state = panel::ViewState::new(scene, histogram, &presets_dir())?;
+    let mut state = panel::ViewState::new(prepared.scene.clone(), histogram, &presets_dir())?;
     state.show_panel = !args.no_panel;
     state.screenshot_size = [args.size.0, args.size.1];
-
-    let ctx = Context::new(&ContextDesc::from_env(DeviceSelector::parse(&args.device)))?;
     let renderer = Renderer::new(ctx.clone())?;
     let event_loop = winit::event_loop::EventLoop::<window::Wake>::with_user_event()
         .build()
         .context("cannot connect to a display (is DISPLAY set? `caustica render` works without one)")?;
     let proxy = event_loop.create_proxy();
-    let worker = worker::Worker::start(renderer, prepared, move || {
+    let worker = worker::Worker::start(renderer, prepared, allow_downsample, move || {
         let _ = proxy.send_event(window::Wake);
     });
     let opts = window::Options {

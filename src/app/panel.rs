@@ -10,7 +10,7 @@ use egui::{Key, Modifiers, PointerButton, Rect, Sense, Ui};
 use super::controls;
 use super::tf_model::{list_presets, Function, TfEditor};
 use super::widgets::{self, PointSelection};
-use crate::scene::{Camera, ClipPlane, Environment, Projection, Scene, Toggle, TransferSource};
+use crate::scene::{Camera, ClipPlane, Environment, Projection, Scene, Toggle, TransferSource, VolumeSource};
 
 /// What the status line shows about the frame on screen.
 #[derive(Clone, Debug, Default)]
@@ -49,6 +49,9 @@ pub struct ViewState {
     pub scene_path: String,
     pub tf_path: String,
     pub presets: Vec<PathBuf>,
+    /// The frames of a time series (empty for a single volume): the panel then shows a time
+    /// slider, which selects the scene's frame.
+    pub series: Vec<PathBuf>,
     /// Where the rendered image goes, in points (the window minus the panel).
     pub viewport: Rect,
     /// Rects of named widgets of the last frame (used by the headless tests to aim clicks).
@@ -70,6 +73,7 @@ pub fn histogram(values: &[f32], window: [f32; 2]) -> Vec<f32> {
 impl ViewState {
     pub fn new(scene: Scene, histogram: Vec<f32>, presets_dir: &std::path::Path) -> anyhow::Result<Self> {
         let tf = TfEditor::new(scene.transfer_functions()?);
+        let series = scene.volume.series()?.map(|s| s.frames).unwrap_or_default();
         Ok(ViewState {
             home_camera: scene.camera.clone(),
             scene,
@@ -85,9 +89,18 @@ impl ViewState {
             scene_path: "caustica-view.toml".into(),
             tf_path: "caustica-transfer.json".into(),
             presets: list_presets(presets_dir),
+            series,
             viewport: Rect::NOTHING,
             rects: HashMap::new(),
         })
+    }
+
+    /// The frame of the time series shown (0 for a single volume).
+    pub fn frame(&self) -> usize {
+        match self.scene.volume {
+            VolumeSource::Series { frame, .. } => frame,
+            _ => 0,
+        }
     }
 
     /// The scene as it should be rendered now (transfer functions inline).
@@ -171,6 +184,15 @@ impl ViewState {
         if pressed(Key::R, none) {
             self.scene.camera = self.home_camera.clone();
         }
+        if !self.series.is_empty() {
+            let frame = self.frame();
+            if pressed(Key::PageDown, none) && frame + 1 < self.series.len() {
+                self.scene.volume.set_frame(frame + 1);
+            }
+            if pressed(Key::PageUp, none) && frame > 0 {
+                self.scene.volume.set_frame(frame - 1);
+            }
+        }
         if pressed(Key::P, none) || pressed(Key::F12, none) {
             actions.push(self.screenshot_action());
         }
@@ -242,6 +264,11 @@ impl ViewState {
                 self.show_help = !self.show_help;
             }
         });
+        if !self.series.is_empty() {
+            egui::CollapsingHeader::new("Time")
+                .default_open(true)
+                .show(ui, |ui| self.time_ui(ui));
+        }
         egui::CollapsingHeader::new("Camera")
             .default_open(true)
             .show(ui, |ui| self.camera_ui(ui));
@@ -258,6 +285,23 @@ impl ViewState {
         egui::CollapsingHeader::new("Save")
             .default_open(true)
             .show(ui, |ui| self.save_ui(ui, actions));
+    }
+
+    /// The time slider: the frame index (as `--time` takes it), "frame k of n" and its file.
+    fn time_ui(&mut self, ui: &mut Ui) {
+        let n = self.series.len();
+        let mut frame = self.frame().min(n - 1);
+        let r = ui.add(egui::Slider::new(&mut frame, 0..=n - 1).text("frame"));
+        self.remember("time", &r);
+        if r.changed() {
+            // The render thread loads the frame; the histogram follows when it has.
+            self.scene.volume.set_frame(frame);
+        }
+        let name = self.series[frame]
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        ui.label(format!("frame {frame} of {n}: {name}"));
     }
 
     fn camera_ui(&mut self, ui: &mut Ui) {
@@ -486,6 +530,7 @@ pub const HELP: &[(&str, &str)] = &[
     ("wheel, + / -", "zoom"),
     ("arrows", "orbit by 5°"),
     ("R", "reset camera"),
+    ("Page Down / Page Up", "time series: next / previous frame"),
     ("Ctrl+Z / Ctrl+Y, Ctrl+Shift+Z", "undo / redo transfer-function edits"),
     ("Delete", "delete the selected control point"),
     ("P, F12", "screenshot (full quality, offscreen)"),

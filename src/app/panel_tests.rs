@@ -5,7 +5,7 @@ use egui::{Event, Key, Modifiers, PointerButton, Pos2, RawInput, Rect, Vec2};
 
 use super::panel::{Action, ViewState};
 use super::tf_model::Function;
-use crate::scene::builtin;
+use crate::scene::{builtin, VolumeSource};
 
 struct Harness {
     ctx: egui::Context,
@@ -20,7 +20,10 @@ impl Harness {
 
     /// A taller screen shows the whole panel without scrolling.
     fn with_screen(screen: Vec2) -> Self {
-        let scene = builtin("ball-lens").unwrap().scene;
+        Self::with_scene(builtin("ball-lens").unwrap().scene, screen)
+    }
+
+    fn with_scene(scene: crate::scene::Scene, screen: Vec2) -> Self {
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("transfer_functions");
         let histogram = super::panel::histogram(&[0.0, 0.0, 0.5, 1.0], [0.0, 1.0]);
         let mut h = Harness {
@@ -240,4 +243,51 @@ fn histogram_is_log_scaled() {
     // One sample against a thousand: ln 2 / ln 1001 ≈ 0.1, far above the linear 0.001.
     assert!((h[63] - 2f32.ln() / 1001f32.ln()).abs() < 1e-6);
     assert!(h[1..63].iter().all(|v| *v == 0.0));
+}
+
+/// The time slider is there only for a time series; moving it selects the scene's frame,
+/// which the rendered (and saved) scene carries.
+#[test]
+fn time_slider_appears_for_a_series_and_selects_the_frame() {
+    let screen = Vec2::new(1024.0, 2000.0);
+    let h = Harness::with_scene(builtin("ball-lens").unwrap().scene, screen);
+    assert!(h.state.series.is_empty());
+    assert!(
+        !h.state.rects.contains_key("time"),
+        "no time slider for a single volume"
+    );
+
+    let mut scene = builtin("ball-lens").unwrap().scene;
+    // A list of files: the panel only needs their names, the render thread loads them.
+    scene.volume = VolumeSource::Series {
+        files: ["a.nrrd", "b.nrrd", "c.nrrd"].map(std::path::PathBuf::from).to_vec(),
+        pattern: None,
+        frame: 0,
+    };
+    let mut h = Harness::with_scene(scene, screen);
+    assert_eq!(h.state.series.len(), 3);
+    let r = h.rect("time");
+    let slider_width = h.ctx.global_style().spacing.slider_width;
+    // The slider's right end is the last frame, its left end the first.
+    h.click(
+        Pos2::new(r.left() + slider_width - 1.0, r.center().y),
+        PointerButton::Primary,
+    );
+    assert_eq!(h.state.frame(), 2);
+    let frame_of = |s: &crate::scene::Scene| match s.volume {
+        VolumeSource::Series { frame, .. } => frame,
+        _ => usize::MAX,
+    };
+    assert_eq!(frame_of(&h.state.scene_for_render()), 2);
+    h.click(Pos2::new(r.left() + 1.0, r.center().y), PointerButton::Primary);
+    assert_eq!(frame_of(&h.state.scene_for_render()), 0);
+    // Page Down / Page Up step through the frames and stop at the ends.
+    h.key(Key::PageUp, Modifiers::NONE);
+    assert_eq!(h.state.frame(), 0);
+    for expected in [1, 2, 2] {
+        h.key(Key::PageDown, Modifiers::NONE);
+        assert_eq!(h.state.frame(), expected);
+    }
+    h.key(Key::PageUp, Modifiers::NONE);
+    assert_eq!(h.state.frame(), 1);
 }

@@ -175,6 +175,13 @@ impl App {
                         self.error.get_or_insert(anyhow!("render failed: {message}"));
                     }
                 }
+                Reply::Volume { frame, histogram } => {
+                    // Bars of an older frame than the one selected would mislead: keep them
+                    // only for the frame the slider shows.
+                    if frame == self.state.frame() {
+                        self.state.histogram = histogram;
+                    }
+                }
                 Reply::Saved { path, result } => {
                     self.state.status.message = match result {
                         Ok(()) => format!("wrote {}", path.display()),

@@ -12,7 +12,7 @@ use std::thread::JoinHandle;
 use std::time::Instant;
 
 use crate::render::{EnvMap, PreparedScene, RenderError, RenderRequest, RenderStats, RenderedImage, Renderer};
-use crate::scene::Scene;
+use crate::scene::{Scene, VolumeSource};
 
 use super::progressive::Job;
 
@@ -54,6 +54,12 @@ pub enum Reply {
         path: PathBuf,
         result: Result<(), String>,
     },
+    /// A time series moved to another frame: the histogram bars of the new frame's values
+    /// (see [`super::panel::histogram`]), sent before the first image of that frame.
+    Volume {
+        frame: usize,
+        histogram: Vec<f32>,
+    },
 }
 
 pub struct Worker {
@@ -64,12 +70,19 @@ pub struct Worker {
 
 impl Worker {
     /// Starts the thread; `wake` is called after every reply (to wake the event loop).
-    pub fn start(renderer: Renderer, prepared: PreparedScene, wake: impl Fn() + Send + 'static) -> Worker {
+    /// A frame of a time series loaded later is downsampled to the device's limits when
+    /// `allow_downsample`, as the first one was.
+    pub fn start(
+        renderer: Renderer,
+        prepared: PreparedScene,
+        allow_downsample: bool,
+        wake: impl Fn() + Send + 'static,
+    ) -> Worker {
         let (req_tx, req_rx) = channel::<Request>();
         let (rep_tx, rep_rx) = channel::<Reply>();
         let thread = std::thread::Builder::new()
             .name("caustica render".into())
-            .spawn(move || run(renderer, prepared, req_rx, rep_tx, wake))
+            .spawn(move || run(renderer, prepared, allow_downsample, req_rx, rep_tx, wake))
             .ok();
         Worker {
             requests: Some(req_tx),
@@ -103,6 +116,7 @@ impl Drop for Worker {
 fn run(
     mut renderer: Renderer,
     mut prepared: PreparedScene,
+    allow_downsample: bool,
     requests: Receiver<Request>,
     replies: Sender<Reply>,
     wake: impl Fn(),
@@ -121,16 +135,49 @@ fn run(
                         send(Reply::Cancelled { job });
                     }
                 }
-                screenshot => handle(&mut renderer, &mut prepared, screenshot, &send),
+                screenshot => handle(&mut renderer, &mut prepared, allow_downsample, screenshot, &send),
             }
         }
         if let Some(f) = frame {
-            handle(&mut renderer, &mut prepared, f, &send);
+            handle(&mut renderer, &mut prepared, allow_downsample, f, &send);
         }
     }
 }
 
-fn set_scene(prepared: &mut PreparedScene, scene: Scene) -> Result<(), RenderError> {
+/// Makes `prepared` the data of `scene`. A new frame of a time series is loaded here, on the
+/// render thread, and fitted to the device like the first one; its histogram goes to the window.
+fn set_scene(
+    renderer: &Renderer,
+    prepared: &mut PreparedScene,
+    allow_downsample: bool,
+    scene: Scene,
+    send: &dyn Fn(Reply),
+) -> Result<(), RenderError> {
+    if scene.volume != prepared.scene.volume {
+        let VolumeSource::Series { frame, .. } = scene.volume else {
+            return Err(RenderError::Setup(
+                "the viewer cannot switch to another volume; open it with `caustica view FILE`".into(),
+            ));
+        };
+        let before = (
+            std::mem::replace(&mut prepared.scene.volume, scene.volume.clone()),
+            prepared.volume.clone(),
+            prepared.volume_info.clone(),
+        );
+        let loaded = prepared
+            .load_frame(frame)
+            .and_then(|()| crate::input::fit_to_device(prepared, renderer.context(), allow_downsample));
+        if let Err(e) = loaded {
+            // Back to the frame that was there: the next request for this one tries again.
+            (prepared.scene.volume, prepared.volume, prepared.volume_info) = before;
+            return Err(e);
+        }
+        let window = scene.window.unwrap_or(prepared.volume_info.default_window);
+        send(Reply::Volume {
+            frame,
+            histogram: super::panel::histogram(&prepared.volume.data, window),
+        });
+    }
     if scene.environment != prepared.scene.environment {
         prepared.env = EnvMap::for_scene(&scene.environment)?;
     }
@@ -139,7 +186,13 @@ fn set_scene(prepared: &mut PreparedScene, scene: Scene) -> Result<(), RenderErr
     Ok(())
 }
 
-fn handle(renderer: &mut Renderer, prepared: &mut PreparedScene, request: Request, send: &dyn Fn(Reply)) {
+fn handle(
+    renderer: &mut Renderer,
+    prepared: &mut PreparedScene,
+    allow_downsample: bool,
+    request: Request,
+    send: &dyn Fn(Reply),
+) {
     match request {
         Request::Frame {
             job,
@@ -153,7 +206,7 @@ fn handle(renderer: &mut Renderer, prepared: &mut PreparedScene, request: Reques
                 return;
             }
             let start = Instant::now();
-            let result = set_scene(prepared, *scene).and_then(|()| {
+            let result = set_scene(renderer, prepared, allow_downsample, *scene, send).and_then(|()| {
                 let mut req = RenderRequest::new(width, height);
                 req.cancel = Some(cancel);
                 renderer.render(prepared, &req)
@@ -178,7 +231,7 @@ fn handle(renderer: &mut Renderer, prepared: &mut PreparedScene, request: Reques
             height,
             path,
         } => {
-            let result = set_scene(prepared, *scene)
+            let result = set_scene(renderer, prepared, allow_downsample, *scene, send)
                 .and_then(|()| renderer.render(prepared, &RenderRequest::new(width, height)))
                 .map_err(|e| e.to_string())
                 .and_then(|out| super::save::save_image(&out.image, &path).map_err(|e| format!("{e:#}")));
@@ -215,7 +268,7 @@ mod tests {
         drop(direct);
 
         let worker_prepared = PreparedScene::load(&scene).unwrap();
-        let mut worker = Worker::start(Renderer::new(ctx.clone()).unwrap(), worker_prepared, || {});
+        let mut worker = Worker::start(Renderer::new(ctx.clone()).unwrap(), worker_prepared, true, || {});
         let dir = std::env::temp_dir().join(format!("caustica-worker-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let cancelled = Job { version: 7, level: 2 };
@@ -244,6 +297,7 @@ mod tests {
                 Reply::Cancelled { job } => was_cancelled = job == cancelled,
                 Reply::Frame { .. } => panic!("a cancelled frame was rendered"),
                 Reply::Failed { message, .. } => panic!("{message}"),
+                Reply::Volume { .. } => panic!("the volume did not change"),
             }
         }
         worker.stop();
@@ -265,6 +319,82 @@ mod tests {
             exr.layer_data.channel_data.pixels, expected.pixels,
             "EXR keeps the linear floats"
         );
+        assert_eq!(ctx.validation_errors(), 0, "{:?}", ctx.validation_messages());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// A request for another frame of a time series loads it on the render thread: the
+    /// window first gets that frame's histogram, then the image, which is the direct render
+    /// of the frame.
+    #[test]
+    fn a_new_frame_is_loaded_with_its_histogram() {
+        let dir = std::env::temp_dir().join(format!("caustica-worker-series-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        for (k, name) in ["ball-lens", "glass"].iter().enumerate() {
+            let v = crate::volume::procedural::generate(name, 16).unwrap();
+            crate::volume::nrrd::write_nrrd(&dir.join(format!("t{k}.nrrd")), &v, false).unwrap();
+        }
+        let mut scene = small_scene();
+        scene.volume = VolumeSource::Series {
+            files: Vec::new(),
+            pattern: Some(dir.join("t*.nrrd")),
+            frame: 0,
+        };
+        scene.window = Some([0.0, 1.0]);
+        let ctx = Context::new(&ContextDesc::from_env(DeviceSelector::Auto)).expect("Vulkan device");
+        let mut later = scene.clone();
+        later.volume.set_frame(1);
+        let frame1 = PreparedScene::load(&later).unwrap();
+        let expected_bars = crate::app::panel::histogram(&frame1.volume.data, [0.0, 1.0]);
+        let mut direct = Renderer::new(ctx.clone()).unwrap();
+        let expected = direct.render(&frame1, &RenderRequest::new(32, 24)).unwrap().image;
+        drop(direct);
+
+        let prepared = PreparedScene::load(&scene).unwrap();
+        assert_ne!(
+            crate::app::panel::histogram(&prepared.volume.data, [0.0, 1.0]),
+            expected_bars,
+            "the frames differ"
+        );
+        let mut worker = Worker::start(Renderer::new(ctx.clone()).unwrap(), prepared, true, || {});
+        let job = Job { version: 1, level: 0 };
+        worker.send(Request::Frame {
+            job,
+            scene: Box::new(later),
+            width: 32,
+            height: 24,
+            cancel: Arc::new(AtomicBool::new(false)),
+        });
+        let mut bars = None;
+        let image = loop {
+            match worker.replies.recv_timeout(Duration::from_secs(120)).expect("a reply") {
+                Reply::Volume { frame, histogram } => bars = Some((frame, histogram)),
+                Reply::Frame { image, .. } => break image,
+                Reply::Failed { message, .. } => panic!("{message}"),
+                _ => panic!("unexpected reply"),
+            }
+        };
+        // A frame that cannot be read fails, and fails again when asked for again (the render
+        // thread does not take the frame it kept for the broken one).
+        std::fs::write(dir.join("t2.nrrd"), b"NRRD0004\nnot a header\n").unwrap();
+        let mut broken = scene.clone();
+        broken.volume.set_frame(2);
+        for version in [2, 3] {
+            worker.send(Request::Frame {
+                job: Job { version, level: 0 },
+                scene: Box::new(broken.clone()),
+                width: 32,
+                height: 24,
+                cancel: Arc::new(AtomicBool::new(false)),
+            });
+            match worker.replies.recv_timeout(Duration::from_secs(120)).expect("a reply") {
+                Reply::Failed { message, .. } => assert!(message.contains("t2.nrrd"), "{message}"),
+                _ => panic!("frame 2 is broken, yet the request did not fail"),
+            }
+        }
+        worker.stop();
+        assert_eq!(bars, Some((1, expected_bars)), "the histogram of frame 1 comes first");
+        assert_eq!(image.pixels, expected.pixels, "the image is the render of frame 1");
         assert_eq!(ctx.validation_errors(), 0, "{:?}", ctx.validation_messages());
         std::fs::remove_dir_all(&dir).unwrap();
     }
