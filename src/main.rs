@@ -44,8 +44,32 @@ struct InvalidImage {
     about = "Volume rendering with refraction, soft shadows and caustics"
 )]
 struct Cli {
+    /// Without a command: open the ball-lens scene in a window, or, without a display, render
+    /// it to caustica.png.
     #[command(subcommand)]
-    command: Command,
+    command: Option<Command>,
+}
+
+/// The built-in scene of the default job (`caustica` without a command).
+const DEFAULT_SCENE: &str = "ball-lens";
+
+/// `caustica` without a command: the viewer on the default scene when there is a display,
+/// otherwise a screenshot of it.
+fn default_job() -> Result<Command> {
+    let has_display = std::env::var_os("DISPLAY").is_some_and(|d| !d.is_empty());
+    let argv: &[&str] = if has_display {
+        eprintln!("caustica: opening the {DEFAULT_SCENE} scene (`caustica --help` lists the commands)");
+        &["caustica", "view", "--scene", DEFAULT_SCENE]
+    } else {
+        eprintln!(
+            "caustica: no display (DISPLAY is not set); rendering the {DEFAULT_SCENE} scene to caustica.png \
+             (`caustica --help` lists the commands)"
+        );
+        &["caustica", "render", "--scene", DEFAULT_SCENE, "-o", "caustica.png"]
+    };
+    Cli::try_parse_from(argv)?
+        .command
+        .context("the default job names no command")
 }
 
 #[derive(Subcommand)]
@@ -332,7 +356,11 @@ fn info(args: &InfoArgs) -> Result<()> {
 }
 
 fn run(cli: Cli) -> Result<()> {
-    match cli.command {
+    let command = match cli.command {
+        Some(c) => c,
+        None => default_job()?,
+    };
+    match command {
         Command::Render(args) => render(&args),
         Command::Bench(args) => bench(&args),
         Command::View(args) => caustica::app::run(&args),

@@ -61,3 +61,41 @@ fn validation_canary_counts_errors() {
         "the validation layer did not report"
     );
 }
+
+/// `caustica` without a command and without a display renders the default scene to
+/// `caustica.png` in the working directory (the README's first quick-start command).
+#[test]
+fn the_default_job_writes_a_screenshot_without_a_display() {
+    let dir = std::env::temp_dir().join(format!("caustica-default-job-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_caustica"))
+        .current_dir(&dir)
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .env("CAUSTICA_VALIDATION", "require")
+        .output()
+        .expect("run the caustica binary");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "caustica failed:\n{stderr}");
+    assert!(
+        stderr.contains("no display") && stderr.contains("caustica.png"),
+        "{stderr}"
+    );
+    let img = image::open(dir.join("caustica.png"))
+        .expect("caustica.png is a PNG")
+        .to_rgb8();
+    assert_eq!(img.dimensions(), (512, 512));
+    let lum: Vec<f32> = img
+        .pixels()
+        .map(|p| p.0.iter().map(|&c| c as f32).sum::<f32>() / 3.0)
+        .collect();
+    let mean = lum.iter().sum::<f32>() / lum.len() as f32;
+    let var = lum.iter().map(|l| (l - mean).powi(2)).sum::<f32>() / lum.len() as f32;
+    assert!(
+        mean > 20.0 && var.sqrt() > 10.0,
+        "blank default image: mean {mean}, std {}",
+        var.sqrt()
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
