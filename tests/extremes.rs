@@ -763,3 +763,74 @@ fn safeguard_view_min_z_stops_rays_that_turned_back() {
     );
     assert!(on == 0 && off > 0, "on {on}, off {off}");
 }
+
+/// An opaque slab (voxels 4–12 in depth) in front of an index drop from η 4 to 1 (voxels
+/// 14–18, a second volume), both exactly perpendicular to the view axis, lit head-on: ∇η
+/// points exactly against the light, with no sideways part. With planes 8 voxels apart one
+/// step of Eq. 10 (v += Δs ∇η) overshoots and reverses the light: v = (0, 0, < 0). Turning it
+/// back into the sweep (LIGHT_MIN_Z) needs its sideways direction, normalize((0, 0, 0)).
+fn reversed_light_scene() -> PreparedScene {
+    let mut tf = plain_tf(vec![[0.0, 0.0], [0.5, 0.0], [0.6, 1.0]], vec![[0.0, 1.0, 1.0, 1.0]]);
+    tf.eta = Curve {
+        points: vec![[0.0, 1.0], [1.0, 4.0]],
+    };
+    let mut scene = head_on_scene(&tf);
+    scene.shading.specular = 0.0;
+    scene.quality.sample_distance = 8.0;
+    scene.quality.light_filter = false;
+    scene.eta_volume = Some(caustica::scene::VolumeSource::Builtin {
+        name: "test".into(),
+        resolution: 0,
+    });
+    let n = N as f32;
+    let slab = volume_from(N, move |_, _, z| if (4.0..12.0).contains(&(z * n)) { 1.0 } else { 0.0 });
+    let mut p = prepared(scene, slab, tf);
+    p.eta_volume = Some(std::sync::Arc::new(volume_from(N, move |_, _, z| {
+        (1.0 - (z * n - 14.0) / 4.0).clamp(0.0, 1.0)
+    })));
+    p
+}
+
+#[test]
+fn safeguard_direction_length_handles_a_reversed_light() {
+    let mut gpu = Gpu::new();
+    let p = reversed_light_scene();
+    assert!(p.features().eta_volume && p.features().refraction);
+    check(
+        &mut gpu,
+        "light reversed by an index drop (η 4→1, Δs 8)",
+        &p,
+        &request(SIZE, SIZE),
+        diffuse_bound(&p, 0.0),
+        "DIRECTION_LENGTH, LIGHT_MIN_Z",
+    );
+    // The texels in the slab's shadow: the centre of the view (the box covers its middle
+    // third; around it light passes beside the box).
+    let centre = |img: &caustica::render::RenderedImage| -> Vec<[f32; 4]> {
+        (12..20)
+            .flat_map(|y| (12..20).map(move |x| (y * SIZE + x) as usize))
+            .map(|i| img.pixels[i])
+            .collect()
+    };
+    // The scene does what it says: behind the drop the light points back toward the camera
+    // (z of the direction -1, shown as 0).
+    let dir = centre(&gpu.debug(&p, SIZE, DebugView::LightDirection, 1.0).image);
+    assert!(
+        dir.iter().all(|q| q[2] < 0.01),
+        "the light was not reversed: {:?}",
+        dir[0]
+    );
+    // Without the safeguard the sideways direction is NaN, the lookup point of the light too,
+    // and a NaN point counts as outside the buffer: the reversed texels get the unobstructed
+    // source light, which leaks through the opaque slab.
+    let mut max_light = |off: u32| {
+        centre(&light_at(&mut gpu, &p, 1.0, off))
+            .iter()
+            .fold(0.0f32, |m, q| m.max(q[1]))
+    };
+    let on = max_light(0);
+    let off = max_light(safeguards::DIRECTION_LENGTH);
+    eprintln!("DIRECTION_LENGTH: light behind the opaque slab {on} (on), {off} (off)");
+    // 8 voxels at opacity 1 (optical depth 16 per voxel) let nothing through: e^-128.
+    assert!(on < 1e-3 && off > 0.1, "on {on}, off {off}");
+}
