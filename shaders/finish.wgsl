@@ -10,10 +10,6 @@ fn env_dir_at(texel: vec2<i32>) -> vec3<f32> {
     return normalize((P.world_from_view * vec4<f32>(d, 0.0)).xyz);
 }
 
-// Footprints (texels of the environment map between neighbouring rays) below this count as
-// this: log2(0) = -inf, and what clamp() makes of -inf is not specified on every device.
-const MIN_LOD_FOOTPRINT: f32 = 1e-6;
-
 // Equirectangular lookup (y up). The mip level follows the angle between neighbouring rays,
 // which refraction can make large: without it the background turns to noise.
 fn environment(texel: vec2<i32>) -> vec3<f32> {
@@ -25,7 +21,16 @@ fn environment(texel: vec2<i32>) -> vec3<f32> {
     let dy = env_dir_at(texel + vec2<i32>(0, 1));
     let angle = max(acos(clamp(dot(d, dx), -1.0, 1.0)), acos(clamp(dot(d, dy), -1.0, 1.0)));
     let width = f32(textureDimensions(env_tex).x);
-    let lod = clamp(log2(max(angle * width / 6.2831853, MIN_LOD_FOOTPRINT)), 0.0, P.limits.w - 1.0);
+    // Footprint: environment texels between neighbouring rays. Up to one texel the full
+    // resolution is right, and the branch keeps log2 inside its domain (x > 0) without an
+    // epsilon: parallel rays (an orthographic camera without refraction) give exactly 0, where
+    // log2 is -inf or undefined (WGSL and SPIR-V leave it open) and clamp() of that would be
+    // device-specific. A NaN footprint fails the comparison and takes level 0 too.
+    let footprint = angle * width / 6.2831853;
+    var lod = 0.0;
+    if (footprint > 1.0) {
+        lod = min(log2(footprint), P.limits.w - 1.0);
+    }
     let uv = vec2<f32>(atan2(d.x, -d.z) / 6.2831853 + 0.5, acos(clamp(d.y, -1.0, 1.0)) / 3.14159265);
     return textureSampleLevel(env_tex, env_sampler, uv, lod).rgb * P.shading.w;
 }
