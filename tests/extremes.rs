@@ -873,8 +873,9 @@ fn parallel_rays_take_the_full_resolution_environment() {
     assert!(ortho.pixels[c][2] > 0.5, "no sky: {:?}", ortho.pixels[c]);
     // The 1° view's rays are 0.03° apart, a footprint far below one texel: level 0 as well.
     // Its centre ray is half a pixel (0.016°) off the axis, along a smooth sky gradient
-    // (measured difference 9e-5); a coarser level would average over the gradient and the
-    // floor, and the coarsest is the mean of the whole map.
+    // (measured difference 9e-5). The coarsest level, what a device that clamps log2(0) to
+    // the upper bound would take, is the mean of the whole map, sky and floor: 0.31 darker
+    // when forced for a zero footprint.
     assert!(
         diff < 1e-3,
         "orthographic {:?}, perspective {:?}",
