@@ -33,15 +33,11 @@ const SG_GGX_ALPHA: u32 = 256u;          // MIN_GGX_ALPHA
 const SG_SEGMENT_OPACITY: u32 = 512u;    // MIN_SEGMENT_OPACITY
 const SG_GRADIENT_LENGTH: u32 = 1024u;   // MIN_GRADIENT_LENGTH
 const SG_DIRECTION_LENGTH: u32 = 2048u;  // MIN_DIRECTION_LENGTH
-const SG_PERSPECTIVE_DEPTH: u32 = 4096u; // MIN_PERSPECTIVE_DEPTH
 
 fn guarded(bit: u32) -> bool {
     return (SAFEGUARDS_OFF & bit) == 0u;
 }
 
-// Smallest depth a perspective division sees. The planes start at NEAR_PLANE (Rust) in front
-// of the camera, so this only guards against a zero from rounding.
-const MIN_PERSPECTIVE_DEPTH: f32 = 1e-6;
 // Below this length a direction vector counts as zero and is not normalised (0/0 = NaN).
 const MIN_DIRECTION_LENGTH: f32 = 1e-12;
 // Segments whose reference opacity is below this are rescaled linearly in length: the ratio
@@ -136,14 +132,18 @@ fn unproject(t: vec2<f32>, z: f32) -> vec3<f32> {
 }
 
 // Continuous texel coordinates of a view-space point (inverse of `unproject`).
+// The perspective division needs no guard: every point projected lies on a plane of the
+// sweep (p.z = z_prev or z, to rounding; MIN_LIGHT_DIR_Z and MIN_VIEW_DIR_Z keep the steps
+// onto it finite), and planes start at z_first >= NEAR_PLANE x radius > 0 (geometry.rs). The
+// rounding is a few ulp of Δs (<= 32 radii), of the light filter's offsets (<= MAX_SOFTNESS x
+// Δs) and of z: ~1e-5 radii, far below NEAR_PLANE x radius, and it scales with the scene, so
+// p.z > 0 at any spacing. A fixed floor such as 1e-6 view units would instead move planes
+// nearer than that: micrometre voxels given in metres would render differently from the same
+// voxels given in voxels (tests/extremes.rs, camera_inside_a_microscopic_volume).
 fn project(p: vec3<f32>) -> vec2<f32> {
     var xy = p.xy;
     if (!ORTHOGRAPHIC) {
-        var z = p.z;
-        if (guarded(SG_PERSPECTIVE_DEPTH)) {
-            z = max(z, MIN_PERSPECTIVE_DEPTH);
-        }
-        xy = p.xy / z;
+        xy = p.xy / p.z;
     }
     return xy * P.projection.xy + P.projection.zw - vec2<f32>(0.5);
 }

@@ -24,13 +24,12 @@ pub const GGX_ALPHA: u32 = 256;
 pub const SEGMENT_OPACITY: u32 = 512;
 pub const GRADIENT_LENGTH: u32 = 1024;
 pub const DIRECTION_LENGTH: u32 = 2048;
-pub const PERSPECTIVE_DEPTH: u32 = 4096;
 
 /// Largest accumulated radiance in the colour buffer (`MAX_RADIANCE` in `common.wgsl`).
 pub const MAX_RADIANCE: f32 = 16384.0;
 
 /// Every shader safeguard, with the name of its bit in `common.wgsl` (`SG_` + name).
-pub const ALL: [Safeguard; 13] = [
+pub const ALL: [Safeguard; 12] = [
     Safeguard {
         bit: LIGHT_MIN_Z,
         name: "LIGHT_MIN_Z",
@@ -90,11 +89,6 @@ pub const ALL: [Safeguard; 13] = [
         bit: DIRECTION_LENGTH,
         name: "DIRECTION_LENGTH",
         why: "a zero direction vector cannot be normalised (0/0)",
-    },
-    Safeguard {
-        bit: PERSPECTIVE_DEPTH,
-        name: "PERSPECTIVE_DEPTH",
-        why: "perspective division by a zero depth",
     },
 ];
 
