@@ -226,45 +226,8 @@ pub fn load_raw(desc: &RawDesc) -> Result<Volume, VolumeError> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::test_support::ScratchDir;
+    use super::super::test_support::{encode_values, test_values, ScratchDir};
     use super::*;
-
-    /// Test values per type, chosen to include the extremes of each range.
-    fn samples(scalar: ScalarType) -> Vec<f64> {
-        match scalar {
-            ScalarType::U8 => vec![0.0, 1.0, 127.0, 128.0, 255.0],
-            ScalarType::I8 => vec![-128.0, -1.0, 0.0, 1.0, 127.0],
-            ScalarType::U16 => vec![0.0, 1.0, 1234.0, 40000.0, 65535.0],
-            ScalarType::I16 => vec![-32768.0, -1234.0, 0.0, 258.0, 32767.0],
-            ScalarType::U32 => vec![0.0, 1.0, 70000.0, 16777216.0, 4294967295.0],
-            ScalarType::I32 => vec![-2147483648.0, -70000.0, 0.0, 5.0, 2147483647.0],
-            ScalarType::F32 => vec![-1.5, 0.0, 0.1, 3.25e10, -7.0e-12],
-            ScalarType::F64 => vec![-1.5, 1.0 / 3.0, 0.0, 2.0e30, -4.5e-20],
-        }
-    }
-
-    fn encode(value: f64, scalar: ScalarType, endian: Endian) -> Vec<u8> {
-        let big = endian == Endian::Big;
-        macro_rules! bytes {
-            ($v:expr) => {
-                if big {
-                    $v.to_be_bytes().to_vec()
-                } else {
-                    $v.to_le_bytes().to_vec()
-                }
-            };
-        }
-        match scalar {
-            ScalarType::U8 => bytes!(value as u8),
-            ScalarType::I8 => bytes!(value as i8),
-            ScalarType::U16 => bytes!(value as u16),
-            ScalarType::I16 => bytes!(value as i16),
-            ScalarType::U32 => bytes!(value as u32),
-            ScalarType::I32 => bytes!(value as i32),
-            ScalarType::F32 => bytes!(value as f32),
-            ScalarType::F64 => bytes!(value),
-        }
-    }
 
     fn desc(path: PathBuf, dims: [usize; 3], scalar: ScalarType) -> RawDesc {
         RawDesc {
@@ -282,11 +245,9 @@ mod tests {
         let dir = ScratchDir::new("raw-roundtrip");
         for scalar in ScalarType::ALL {
             for endian in [Endian::Little, Endian::Big] {
-                let values = samples(scalar);
+                let values = test_values(scalar);
                 let mut bytes = vec![0xAB; 3];
-                for &v in &values {
-                    bytes.extend(encode(v, scalar, endian));
-                }
+                bytes.extend(encode_values(&values, scalar, endian));
                 let path = dir.write(&format!("{scalar}-{endian:?}.raw"), &bytes);
                 let mut d = desc(path, [values.len(), 1, 1], scalar);
                 d.endian = endian;
