@@ -69,11 +69,7 @@ pub fn load_metaimage(path: &Path) -> Result<Loaded, VolumeError> {
 }
 
 fn header_error(path: &Path, message: impl Into<String>) -> VolumeError {
-    VolumeError::Header {
-        path: path.to_path_buf(),
-        line: None,
-        message: format!("MetaImage: {}", message.into()),
-    }
+    super::read::format_header_error(path, "MetaImage", message)
 }
 
 fn read_header<R: BufRead>(reader: &mut R, path: &Path) -> Result<Header, VolumeError> {

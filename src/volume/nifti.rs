@@ -100,11 +100,7 @@ pub fn load_nifti(path: &Path) -> Result<Loaded, VolumeError> {
 }
 
 fn header_error(path: &Path, message: impl Into<String>) -> VolumeError {
-    VolumeError::Header {
-        path: path.to_path_buf(),
-        line: None,
-        message: format!("NIfTI: {}", message.into()),
-    }
+    super::read::format_header_error(path, "NIfTI", message)
 }
 
 fn is_gzip(path: &Path) -> Result<bool, VolumeError> {

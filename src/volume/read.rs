@@ -43,6 +43,16 @@ pub(crate) fn io_error(path: &Path) -> impl Fn(io::Error) -> VolumeError + '_ {
     }
 }
 
+/// A header error of a format whose headers have no line structure, prefixed with the
+/// format's name.
+pub(crate) fn format_header_error(path: &Path, format: &str, message: impl Into<String>) -> VolumeError {
+    VolumeError::Header {
+        path: path.to_path_buf(),
+        line: None,
+        message: format!("{format}: {}", message.into()),
+    }
+}
+
 pub(crate) fn data_error(path: &Path, message: impl Into<String>) -> VolumeError {
     VolumeError::Data {
         path: path.to_path_buf(),

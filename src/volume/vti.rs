@@ -13,11 +13,7 @@ use super::read::{data_error, io_error, samples_from_bytes, Layout};
 use super::{checked_voxel_count, Endian, ScalarType, Volume, VolumeError};
 
 fn header_error(path: &Path, message: impl Into<String>) -> VolumeError {
-    VolumeError::Header {
-        path: path.to_path_buf(),
-        line: None,
-        message: format!("VTK ImageData: {}", message.into()),
-    }
+    super::read::format_header_error(path, "VTK ImageData", message)
 }
 
 /// How one array's bytes are stored.
@@ -235,6 +231,17 @@ fn header_word(bytes: &[u8], at: usize, size: usize, endian: Endian) -> Option<u
     })
 }
 
+/// An uncompressed array's size header must cover the extent.
+fn check_array_size(size: u64, expected_bytes: u64, path: &Path) -> Result<(), VolumeError> {
+    if size < expected_bytes {
+        return Err(data_error(
+            path,
+            format!("VTK array holds {size} bytes but the extent needs {expected_bytes}"),
+        ));
+    }
+    Ok(())
+}
+
 fn truncated(path: &Path, what: &str) -> VolumeError {
     data_error(path, format!("VTK data block ends inside its {what}"))
 }
@@ -251,28 +258,13 @@ fn read_block(
 ) -> Result<Vec<u8>, VolumeError> {
     if !compressed {
         let size = header_word(bytes, 0, word, endian).ok_or_else(|| truncated(path, "size header"))?;
-        if size < expected_bytes {
-            return Err(data_error(
-                path,
-                format!("VTK array holds {size} bytes but the extent needs {expected_bytes}"),
-            ));
-        }
+        check_array_size(size, expected_bytes, path)?;
         let data = bytes.get(word..).unwrap_or(&[]);
         let n = (expected_bytes as usize).min(data.len());
         return Ok(data[..n].to_vec());
     }
     let (blocks, block_size, _last, sizes) = block_table(bytes, word, endian, path)?;
-    let mut out = Vec::with_capacity((expected_bytes as usize).min(super::read::UNVERIFIED_RESERVE * 4));
-    let mut at = word * (3 + blocks);
-    for size in sizes {
-        let end = at
-            .checked_add(size as usize)
-            .filter(|e| *e <= bytes.len())
-            .ok_or_else(|| truncated(path, "compressed blocks"))?;
-        inflate_into(&bytes[at..end], block_size, expected_bytes, &mut out, path)?;
-        at = end;
-    }
-    Ok(out)
+    inflate_blocks(bytes, word * (3 + blocks), &sizes, block_size, expected_bytes, path)
 }
 
 fn block_table(
@@ -290,6 +282,29 @@ fn block_table(
     let blocks = blocks as usize;
     let sizes = (0..blocks).map(|i| w(3 + i)).collect::<Result<Vec<_>, _>>()?;
     Ok((blocks, w(1)?, w(2)?, sizes))
+}
+
+/// Inflates the zlib blocks of `sizes` bytes each that follow one another in `data` from byte
+/// `start` on.
+fn inflate_blocks(
+    data: &[u8],
+    start: usize,
+    sizes: &[u64],
+    block_size: u64,
+    expected_bytes: u64,
+    path: &Path,
+) -> Result<Vec<u8>, VolumeError> {
+    let mut out = Vec::with_capacity((expected_bytes as usize).min(super::read::UNVERIFIED_RESERVE * 4));
+    let mut at = start;
+    for &size in sizes {
+        let end = at
+            .checked_add(size as usize)
+            .filter(|e| *e <= data.len())
+            .ok_or_else(|| truncated(path, "compressed blocks"))?;
+        inflate_into(&data[at..end], block_size, expected_bytes, &mut out, path)?;
+        at = end;
+    }
+    Ok(out)
 }
 
 /// Inflates one zlib block, never producing more than `block_size` bytes nor more in total
@@ -330,12 +345,7 @@ fn decode_base64_block(
     let head = b64(clean.get(..first).ok_or_else(|| truncated(path, "header"))?)?;
     if !compressed {
         let size = header_word(&head, 0, word, endian).ok_or_else(|| truncated(path, "size header"))?;
-        if size < expected_bytes {
-            return Err(data_error(
-                path,
-                format!("VTK array holds {size} bytes but the extent needs {expected_bytes}"),
-            ));
-        }
+        check_array_size(size, expected_bytes, path)?;
         // Bound the text decoded to what the array needs.
         let data_chars = header_chars(expected_bytes as usize).min(clean.len() - first);
         let mut data = b64(&clean[first..first + data_chars])?;
@@ -354,17 +364,7 @@ fn decode_base64_block(
     let payload = b64(clean
         .get(table_chars..table_chars.saturating_add(data_chars))
         .ok_or_else(|| truncated(path, "compressed blocks"))?)?;
-    let mut out = Vec::new();
-    let mut at = 0usize;
-    for size in sizes {
-        let end = at
-            .checked_add(size as usize)
-            .filter(|e| *e <= payload.len())
-            .ok_or_else(|| truncated(path, "compressed blocks"))?;
-        inflate_into(&payload[at..end], block_size, expected_bytes, &mut out, path)?;
-        at = end;
-    }
-    Ok(out)
+    inflate_blocks(&payload, 0, &sizes, block_size, expected_bytes, path)
 }
 
 #[cfg(test)]

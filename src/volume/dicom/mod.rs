@@ -20,11 +20,7 @@ const MAX_FILE_BYTES: u64 = 1 << 30;
 const GAP_TOLERANCE: f64 = 0.01;
 
 fn header_error(path: &Path, message: impl Into<String>) -> VolumeError {
-    VolumeError::Header {
-        path: path.to_path_buf(),
-        line: None,
-        message: format!("DICOM: {}", message.into()),
-    }
+    super::read::format_header_error(path, "DICOM", message)
 }
 
 /// The elements of one slice that building a volume needs.
