@@ -530,6 +530,17 @@ fn image_with(gpu: &mut Gpu, p: &PreparedScene, size: u32, off: u32) -> caustica
     gpu.render(p, &req).image
 }
 
+/// Asserts that `p` renders without non-finite values with every safeguard on, and with some
+/// once `bit` is switched off. MAX_RADIANCE is off in both renders: its clamp turns a NaN into
+/// the maximum and would hide it.
+fn assert_nan_without(gpu: &mut Gpu, p: &PreparedScene, size: u32, name: &str, bit: u32) {
+    let base = safeguards::MAX_RADIANCE_CLAMP;
+    let on = image_with(gpu, p, size, base).count_invalid().0;
+    let off = image_with(gpu, p, size, base | bit).count_invalid().0;
+    eprintln!("{name}: non-finite values {on} (on), {off} (off)");
+    assert!(on == 0 && off > 0);
+}
+
 fn head_on(mut p: PreparedScene) -> PreparedScene {
     p.scene.light.polar_deg = 0.0;
     p.scene.camera.projection = Projection::Orthographic;
@@ -648,14 +659,7 @@ fn safeguard_ggx_alpha_keeps_a_mirror_highlight_finite() {
     // odd-sized image). MAX_RADIANCE is off in both renders so that it cannot hide a NaN.
     let mut gpu = Gpu::new();
     let p = mirror_ball(1.0);
-    let on = image_with(&mut gpu, &p, 33, safeguards::MAX_RADIANCE_CLAMP)
-        .count_invalid()
-        .0;
-    let off = image_with(&mut gpu, &p, 33, safeguards::MAX_RADIANCE_CLAMP | safeguards::GGX_ALPHA)
-        .count_invalid()
-        .0;
-    eprintln!("GGX_ALPHA: non-finite values {on} (on), {off} (off)");
-    assert!(on == 0 && off > 0);
+    assert_nan_without(&mut gpu, &p, 33, "GGX_ALPHA", safeguards::GGX_ALPHA);
 }
 
 #[test]
@@ -686,19 +690,7 @@ fn safeguard_segment_opacity_handles_transparent_segments() {
     let mut tf = blobs_tf();
     tf.opacity = Curve::constant(0.0);
     let p = prepared(head_on_scene(&tf), sphere(N, 0.35, 1.0), tf);
-    let on = image_with(&mut gpu, &p, SIZE, safeguards::MAX_RADIANCE_CLAMP)
-        .count_invalid()
-        .0;
-    let off = image_with(
-        &mut gpu,
-        &p,
-        SIZE,
-        safeguards::MAX_RADIANCE_CLAMP | safeguards::SEGMENT_OPACITY,
-    )
-    .count_invalid()
-    .0;
-    eprintln!("SEGMENT_OPACITY: non-finite values {on} (on), {off} (off)");
-    assert!(on == 0 && off > 0);
+    assert_nan_without(&mut gpu, &p, SIZE, "SEGMENT_OPACITY", safeguards::SEGMENT_OPACITY);
 }
 
 #[test]
@@ -708,19 +700,7 @@ fn safeguard_gradient_length_handles_homogeneous_regions() {
     let mut scene = head_on_scene(&tf);
     scene.quality.refraction = Toggle::On;
     let p = prepared(scene, volume_from(N, |_, _, _| 0.5), tf);
-    let on = image_with(&mut gpu, &p, SIZE, safeguards::MAX_RADIANCE_CLAMP)
-        .count_invalid()
-        .0;
-    let off = image_with(
-        &mut gpu,
-        &p,
-        SIZE,
-        safeguards::MAX_RADIANCE_CLAMP | safeguards::GRADIENT_LENGTH,
-    )
-    .count_invalid()
-    .0;
-    eprintln!("GRADIENT_LENGTH: non-finite values {on} (on), {off} (off)");
-    assert!(on == 0 && off > 0);
+    assert_nan_without(&mut gpu, &p, SIZE, "GRADIENT_LENGTH", safeguards::GRADIENT_LENGTH);
 }
 
 #[test]
