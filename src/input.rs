@@ -75,6 +75,17 @@ pub struct InputArgs {
     pub raw_header: u64,
 }
 
+/// An image or window size, WIDTHxHEIGHT, each at least 1.
+pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s.split_once(['x', 'X']).ok_or("expected WIDTHxHEIGHT, e.g. 512x512")?;
+    let p = |v: &str| v.trim().parse::<u32>().map_err(|e| format!("'{v}': {e}"));
+    let (w, h) = (p(w)?, p(h)?);
+    if w == 0 || h == 0 {
+        return Err("width and height must be at least 1".into());
+    }
+    Ok((w, h))
+}
+
 fn parse_dims(s: &str) -> Result<[usize; 3], String> {
     let v: Vec<usize> = s
         .split(['x', 'X'])

@@ -7,7 +7,7 @@ use anyhow::{bail, Context as _, Result};
 use clap::{Parser, Subcommand};
 
 use caustica::gpu::{list_devices, Context, ContextDesc, DeviceSelector, GpuError};
-use caustica::input::{fit_to_device, InputArgs, Prepared};
+use caustica::input::{fit_to_device, parse_size, InputArgs, Prepared};
 use caustica::render::{DebugView, RenderError, RenderRequest, Renderer};
 use caustica::scene::{builtin, BUILTIN_SCENES};
 use caustica::volume;
@@ -149,16 +149,6 @@ struct RenderArgs {
     /// Print planes, ms per plane and total GPU time.
     #[arg(long)]
     timings: bool,
-}
-
-fn parse_size(s: &str) -> Result<(u32, u32), String> {
-    let (w, h) = s.split_once(['x', 'X']).ok_or("expected WIDTHxHEIGHT, e.g. 512x512")?;
-    let p = |v: &str| v.trim().parse::<u32>().map_err(|e| format!("'{v}': {e}"));
-    let (w, h) = (p(w)?, p(h)?);
-    if w == 0 || h == 0 {
-        return Err("width and height must be at least 1".into());
-    }
-    Ok((w, h))
 }
 
 fn parse_debug_view(s: &str) -> Result<DebugView, String> {

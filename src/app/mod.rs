@@ -65,11 +65,10 @@ pub struct ViewArgs {
     pub resize_after_idle: Option<(u32, u32)>,
 }
 
+/// A window size: [`crate::input::parse_size`], at most 16384 on each side.
 fn parse_size(s: &str) -> Result<(u32, u32), String> {
-    let (w, h) = s.split_once(['x', 'X']).ok_or("expected WIDTHxHEIGHT, e.g. 1024x768")?;
-    let p = |v: &str| v.trim().parse::<u32>().map_err(|e| format!("'{v}': {e}"));
-    let (w, h) = (p(w)?, p(h)?);
-    if !(1..=16384).contains(&w) || !(1..=16384).contains(&h) {
+    let (w, h) = crate::input::parse_size(s)?;
+    if w > 16384 || h > 16384 {
         return Err("width and height must be between 1 and 16384".into());
     }
     Ok((w, h))
