@@ -85,7 +85,12 @@ struct Immediates {
     pad1: u32,
 }
 
-@group(0) @binding(0) var<uniform> P: Params;
+// Params is a read-only storage buffer, not a uniform buffer: lavapipe specialises a shader on
+// the values of uniforms that decide branches ("uniform inlining") and compiles a new variant
+// whenever a uniform or push-constant buffer is bound again, which cost ~3 ms per plane.
+// Storage-buffer loads are never inlined. For the same reason no branch may depend on the
+// push constants alone (see `plane_index`).
+@group(0) @binding(0) var<storage, read> P: Params;
 @group(0) @binding(1) var volume_tex: texture_3d<f32>;
 @group(0) @binding(2) var linear_clamp: sampler;      // clamp-to-edge, tables
 @group(0) @binding(3) var volume_sampler: sampler;    // clamp-to-border (0 outside)

@@ -11,6 +11,8 @@ use super::{Buffer, Context, Image, Sampler};
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum BindingKind {
     Uniform,
+    /// A storage buffer (read-only or read-write, as the shader declares it).
+    StorageBuffer,
     SampledImage,
     Sampler,
     StorageImage,
@@ -20,6 +22,7 @@ impl BindingKind {
     fn descriptor_type(self) -> vk::DescriptorType {
         match self {
             BindingKind::Uniform => vk::DescriptorType::UNIFORM_BUFFER,
+            BindingKind::StorageBuffer => vk::DescriptorType::STORAGE_BUFFER,
             BindingKind::SampledImage => vk::DescriptorType::SAMPLED_IMAGE,
             BindingKind::Sampler => vk::DescriptorType::SAMPLER,
             BindingKind::StorageImage => vk::DescriptorType::STORAGE_IMAGE,
@@ -213,8 +216,9 @@ impl DescriptorSet {
                     message: format!("no binding {index} in the layout"),
                 })?;
             match (kind, res) {
-                (BindingKind::Uniform, Resource::Uniform(b)) => buffer_infos.push((
+                (BindingKind::Uniform | BindingKind::StorageBuffer, Resource::Uniform(b)) => buffer_infos.push((
                     *index,
+                    kind,
                     vk::DescriptorBufferInfo {
                         buffer: b.raw,
                         offset: 0,
@@ -248,12 +252,12 @@ impl DescriptorSet {
             }
         }
         let mut vk_writes = Vec::new();
-        for (index, info) in &buffer_infos {
+        for (index, kind, info) in &buffer_infos {
             vk_writes.push(
                 vk::WriteDescriptorSet::default()
                     .dst_set(self.raw)
                     .dst_binding(*index)
-                    .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)
+                    .descriptor_type(kind.descriptor_type())
                     .buffer_info(std::slice::from_ref(info)),
             );
         }

@@ -73,7 +73,7 @@ pub fn bindings() -> Vec<Binding> {
     let mut b = vec![
         Binding {
             index: slot::PARAMS,
-            kind: Uniform,
+            kind: StorageBuffer,
         },
         Binding {
             index: slot::VOLUME,

@@ -188,7 +188,7 @@ pub(super) fn run(
         ctx,
         "params",
         std::mem::size_of::<Params>() as u64,
-        vk::BufferUsageFlags::UNIFORM_BUFFER,
+        vk::BufferUsageFlags::STORAGE_BUFFER,
     )?;
     uniform.write(bytemuck::bytes_of(&make_params(
         prepared,
