@@ -2,20 +2,21 @@
 // helpers. Prepended to each pass file before compilation.
 //
 // Coordinates: "view space" has the camera at the origin, x right, y down, z forward (depth).
-// Plane i lies at z = plane.x + i * plane.y. Buffer texel (u, v) on plane i is the point where
-// the straight primary ray of pixel (u, v) meets that plane.
+// Plane i lies at z = plane.x + i * plane.y. Pixel (u, v) of plane i is the point where the
+// straight primary ray through the pixel's centre meets that plane; continuous pixel
+// coordinates `t` have the centre of pixel u at t = u (see `unproject` / `project`).
 
 // Feature switches, resolved by naga before SPIR-V is written (one pipeline per combination).
 override REFRACTION: bool = true;           // η varies: bend light and view rays
-override MEDIUM: bool = true;               // medium colour is not white: track M per view ray
-override LIGHT_FILTER: bool = true;         // incremental convolution (soft light)
-override INTENSITY_CORRECTION: bool = true; // intensity law S_{i-1}/S_i (caustics)
+override MEDIUM: bool = true;               // medium colour is not white: coloured light and M per view ray
+override LIGHT_FILTER: bool = true;         // soft light (a cone source)
+override INTENSITY_CORRECTION: bool = true; // backward transport: intensity law S_{i-1}/S_i (caustics)
 override SPECULAR: bool = true;             // Cook–Torrance highlight at index changes
 override CLIP: bool = false;                // clip plane zeroes opacity
-override ETA_VOLUME: bool = false;          // η from a second volume
 override ORTHOGRAPHIC: bool = false;
-override DEBUG_VIEW: u32 = 0u;              // finish pass: 0 image, 1 light, 2 light direction, 3 concentration, 4 medium
-override GRADIENT: u32 = 0u;                // gradient reconstruction: 0 central differences, 1 forward differences
+override BEAMS: bool = true;                // light transport: forward beams (true) or backward lookups
+override F32_STATE: bool = false;           // light, colour and medium state in 32-bit floats
+override DEBUG_VIEW: u32 = 0u;              // 0 image, 1 light, 2 light direction, 3 concentration, 4 medium
 // Safeguards switched off, one bit each (SG_* below). Always 0 in renders; tests set single
 // bits to show that each safeguard is needed. Constant-folded like the features above.
 override SAFEGUARDS_OFF: u32 = 0u;
@@ -23,9 +24,9 @@ override SAFEGUARDS_OFF: u32 = 0u;
 // Every clamp and epsilon of the shaders has a bit here (see README, "Numerical safeguards").
 const SG_LIGHT_MIN_Z: u32 = 1u;          // light directions keep z >= MIN_LIGHT_DIR_Z
 const SG_VIEW_MIN_Z: u32 = 2u;           // view rays leave the sweep below MIN_VIEW_DIR_Z
-const SG_INTENSITY_RATIO: u32 = 4u;      // per-plane clamp of the intensity-law ratio
+const SG_INTENSITY_RATIO: u32 = 4u;      // backward: per-plane clamp of the intensity-law ratio
 const SG_CONCENTRATION: u32 = 8u;        // light never exceeds max_concentration × the source
-const SG_FOLD: u32 = 16u;                // no further concentration where the backward map folds
+const SG_FOLD: u32 = 16u;                // backward: no further concentration where the map folds
 const SG_MAX_LIGHT: u32 = 32u;           // stored light <= MAX_LIGHT_VALUE
 const SG_MAX_RADIANCE: u32 = 64u;        // accumulated colour <= MAX_RADIANCE
 const SG_FRESNEL_STEP: u32 = 128u;       // FRESNEL_MIN_RELATIVE_STEP
@@ -33,6 +34,8 @@ const SG_GGX_ALPHA: u32 = 256u;          // MIN_GGX_ALPHA
 const SG_SEGMENT_OPACITY: u32 = 512u;    // MIN_SEGMENT_OPACITY
 const SG_GRADIENT_LENGTH: u32 = 1024u;   // MIN_GRADIENT_LENGTH
 const SG_DIRECTION_LENGTH: u32 = 2048u;  // MIN_DIRECTION_LENGTH
+const SG_FOOTPRINT: u32 = 4096u;         // beams: MAX_FOOTPRINT_PIXELS
+const SG_SATURATION: u32 = 8192u;        // beams: accumulated light stops at ACC_SATURATED
 
 fn guarded(bit: u32) -> bool {
     return (SAFEGUARDS_OFF & bit) == 0u;
@@ -43,15 +46,16 @@ const MIN_DIRECTION_LENGTH: f32 = 1e-12;
 // Segments whose reference opacity is below this are rescaled linearly in length: the ratio
 // of the two opacities would be 0/0 for a fully transparent segment.
 const MIN_SEGMENT_OPACITY: f32 = 1e-6;
-// Gradients shorter than this (data value per view unit) give no surface normal, so no
-// highlight: normalising them would divide by zero in homogeneous regions.
+// Gradients shorter than this (η per view unit) give no surface normal, so no highlight and
+// no renormalisation of the ray direction: normalising them would divide by zero.
 const MIN_GRADIENT_LENGTH: f32 = 1e-6;
 // Largest accumulated radiance in the colour buffer: a quarter of the 16-bit float maximum
 // (65504), so that the final blend with the environment cannot overflow in f16 either.
 // Reached only by sums of sharp highlights (roughness near 0 at many index steps).
 const MAX_RADIANCE: f32 = 16384.0;
-// Floor of the tracked concentration: ratios below 1 (light spreading out) shrink it by up to
-// max_intensity_ratio per plane, and it must not underflow to 0 before the budget divides by it.
+// Floor of the tracked concentration (backward transport): ratios below 1 (light spreading
+// out) shrink it by up to max_intensity_ratio per plane, and it must not underflow to 0
+// before the budget divides by it.
 const MIN_CONCENTRATION: f32 = 1e-6;
 
 fn safe_normalize(v: vec3<f32>) -> vec3<f32> {
@@ -63,19 +67,23 @@ fn safe_normalize(v: vec3<f32>) -> vec3<f32> {
 
 struct Params {
     volume_from_view: mat4x4<f32>,   // view-space point -> volume texture coordinates [0,1]^3
-    gradient_to_view: mat4x4<f32>,   // central differences (per texel) -> view-space gradient
+    gradient_to_view: mat4x4<f32>,   // gradient texture (η per volume texel) -> η per view unit
     world_from_view: mat4x4<f32>,    // rotation only: view direction -> environment direction
     clip_plane: vec4<f32>,           // view space; opacity is zero where dot(xyz, p) + w > 0
     projection: vec4<f32>,           // fx, fy, cx, cy (pixels); ortho: pixel = f * p + c
     plane: vec4<f32>,                // z of plane 0, Δs (view units), plane count, Δs in voxels
-    light_dir: vec4<f32>,            // initial propagation direction (unit, z > 0); w: filter radius per plane (view units)
-    light_color: vec4<f32>,          // rgb radiance of the light; w: max intensity ratio per plane
+    light_dir: vec4<f32>,            // initial propagation direction (unit, z > 0); w: softness (tan of the cone's half-angle)
+    light_color: vec4<f32>,          // rgb radiance of the light; w: max intensity ratio per plane (backward)
     shading: vec4<f32>,              // specular intensity, roughness, termination opacity, environment intensity
     size: vec4<f32>,                 // width, height, 1/width, 1/height
-    texel: vec4<f32>,                // 1 / volume dims (xyz), eta table size (w)
+    texel: vec4<f32>,                // 1 / volume dims (xyz), η outside the volume (w)
     background: vec4<f32>,           // rgb background when there is no environment map; w: 1 = use env map
     limits: vec4<f32>,               // min light dir z, min view dir z, max light value, env map mip count
-    budget: vec4<f32>,               // x: max concentration (light / source light); yzw: unused
+    budget: vec4<f32>,               // x: max concentration (light / source light); y: interface half-width (view units); zw: unused
+    beam_origin: vec4<f32>,          // beams: plane-0 pixel coords of cell (0, 0)'s corner (xy), stride (z), plane-0 cell area / pixel area (w)
+    beam_grid: vec4<u32>,            // beams: width, height, tiles in x, beam workgroups
+    rect: vec4<u32>,                 // pixels whose rays can meet the volume: x0, y0, x1, y1 (half-open)
+    tiles: vec4<u32>,                // view tiles in x, view workgroups, workgroups per dispatch row, light channels
 }
 
 struct Immediates {
@@ -89,45 +97,184 @@ struct Immediates {
 // the values of uniforms that decide branches ("uniform inlining") and compiles a new variant
 // whenever a uniform or push-constant buffer is bound again, which cost ~3 ms per plane.
 // Storage-buffer loads are never inlined. For the same reason no branch may depend on the
-// push constants alone (see `plane_index`).
+// push constants alone (see `dispatch_plane`).
 @group(0) @binding(0) var<storage, read> P: Params;
 @group(0) @binding(1) var volume_tex: texture_3d<f32>;
 @group(0) @binding(2) var linear_clamp: sampler;      // clamp-to-edge, tables
 @group(0) @binding(3) var volume_sampler: sampler;    // clamp-to-border (0 outside)
-@group(0) @binding(4) var eta_volume_tex: texture_3d<f32>;
+// ∇η (xyz, η per volume texel, central differences of η_tf applied per voxel) and η − η
+// outside the volume (w), so that the zero border is the ambient medium.
+@group(0) @binding(4) var gradient_tex: texture_3d<f32>;
 @group(0) @binding(5) var particle_table: texture_2d<f32>;   // rgb: premultiplied colour, a: τ_α
 @group(0) @binding(6) var medium_table: texture_2d<f32>;     // rgb: τ_m
-@group(0) @binding(7) var eta_table: texture_2d<f32>;        // r: η(x), size x 1
+// Light at each view ray's position on its current plane (rgb), the front end of its next
+// segment; see `load_view_color`.
+@group(0) @binding(7) var<storage, read_write> view_light: array<u32>;
 @group(0) @binding(8) var env_tex: texture_2d<f32>;
 @group(0) @binding(9) var env_sampler: sampler;
 
-// Read side of the ping-pong buffers (state at plane i-1).
-@group(0) @binding(10) var light_in: texture_2d<f32>;
-@group(0) @binding(11) var light_dir_in: texture_2d<f32>;
-@group(0) @binding(12) var view_pos_in: texture_2d<f32>;
-@group(0) @binding(13) var view_dir_in: texture_2d<f32>;
-@group(0) @binding(14) var color_in: texture_2d<f32>;
-@group(0) @binding(15) var medium_in: texture_2d<f32>;
-// Write side (state at plane i).
-@group(0) @binding(16) var light_out: texture_storage_2d<rgba16float, write>;
-@group(0) @binding(17) var light_dir_out: texture_storage_2d<rgba32float, write>;
-@group(0) @binding(18) var view_pos_out: texture_storage_2d<rgba32float, write>;
-@group(0) @binding(19) var view_dir_out: texture_storage_2d<rgba32float, write>;
-@group(0) @binding(20) var color_out: texture_storage_2d<rgba16float, write>;
-@group(0) @binding(21) var medium_out: texture_storage_2d<rgba16float, write>;
-@group(0) @binding(22) var image_out: texture_storage_2d<rgba32float, write>;
+// View rays, one per pixel, updated in place.
+@group(0) @binding(10) var<storage, read_write> view_ray: array<vec4<f32>>;   // x, y on the plane, v.x, v.y
+@group(0) @binding(11) var<storage, read_write> view_aux: array<vec4<f32>>;   // v.z, data value, alive (1/0), η
+@group(0) @binding(12) var<storage, read_write> view_color: array<u32>;       // rgba (colour, opacity); see `load_view_color`
+@group(0) @binding(13) var<storage, read_write> view_medium: array<u32>;      // rgb medium transmittance
+
+// Forward beams: two halves (plane parity) of beam_grid.x × beam_grid.y beams each.
+@group(0) @binding(14) var<storage, read_write> beam_pos: array<vec4<f32>>;   // x, y on the plane, v.x, v.y
+@group(0) @binding(15) var<storage, read_write> beam_aux: array<vec4<f32>>;   // v.z, data value, shadow depth, unused
+@group(0) @binding(16) var<storage, read_write> beam_power: array<u32>;       // rgb power (relative to a plane-0 cell), see `load_view_color`
+// Light deposited on four planes in turn (fixed point, see `ACC_SCALE`).
+@group(0) @binding(17) var<storage, read_write> light_acc: array<atomic<u32>>;
+
+// Backward transport: a ring of three planes of light (rgb; w: shadow depth) and directions
+// (v = η·direction; w: concentration).
+@group(0) @binding(18) var<storage, read_write> back_light: array<u32>;
+@group(0) @binding(19) var<storage, read_write> back_dir: array<vec4<f32>>;
+
+@group(0) @binding(20) var<storage, read_write> image_out: array<vec4<f32>>;
 
 var<immediate> I: Immediates;
+
+// The plane of this dispatch. The push constant passes through the workgroup id (z is always
+// 0) so that no branch depends on a push constant alone (see the note on `P`).
+fn dispatch_plane(wg: vec3<u32>) -> u32 {
+    return I.plane_index + wg.z;
+}
+
+// rgba state texels of the precision buffers: two packed halves or four floats each.
+fn load_view_color(i: u32) -> vec4<f32> {
+    if (F32_STATE) {
+        let b = i * 4u;
+        return vec4<f32>(bitcast<f32>(view_color[b]), bitcast<f32>(view_color[b + 1u]),
+                         bitcast<f32>(view_color[b + 2u]), bitcast<f32>(view_color[b + 3u]));
+    }
+    let b = i * 2u;
+    return vec4<f32>(unpack2x16float(view_color[b]), unpack2x16float(view_color[b + 1u]));
+}
+
+fn store_view_color(i: u32, v: vec4<f32>) {
+    if (F32_STATE) {
+        let b = i * 4u;
+        view_color[b] = bitcast<u32>(v.x);
+        view_color[b + 1u] = bitcast<u32>(v.y);
+        view_color[b + 2u] = bitcast<u32>(v.z);
+        view_color[b + 3u] = bitcast<u32>(v.w);
+        return;
+    }
+    let b = i * 2u;
+    view_color[b] = pack2x16float(v.xy);
+    view_color[b + 1u] = pack2x16float(v.zw);
+}
+
+fn load_view_medium(i: u32) -> vec4<f32> {
+    if (F32_STATE) {
+        let b = i * 4u;
+        return vec4<f32>(bitcast<f32>(view_medium[b]), bitcast<f32>(view_medium[b + 1u]),
+                         bitcast<f32>(view_medium[b + 2u]), bitcast<f32>(view_medium[b + 3u]));
+    }
+    let b = i * 2u;
+    return vec4<f32>(unpack2x16float(view_medium[b]), unpack2x16float(view_medium[b + 1u]));
+}
+
+fn store_view_medium(i: u32, v: vec4<f32>) {
+    if (F32_STATE) {
+        let b = i * 4u;
+        view_medium[b] = bitcast<u32>(v.x);
+        view_medium[b + 1u] = bitcast<u32>(v.y);
+        view_medium[b + 2u] = bitcast<u32>(v.z);
+        view_medium[b + 3u] = bitcast<u32>(v.w);
+        return;
+    }
+    let b = i * 2u;
+    view_medium[b] = pack2x16float(v.xy);
+    view_medium[b + 1u] = pack2x16float(v.zw);
+}
+
+fn load_beam_power(i: u32) -> vec4<f32> {
+    if (F32_STATE) {
+        let b = i * 4u;
+        return vec4<f32>(bitcast<f32>(beam_power[b]), bitcast<f32>(beam_power[b + 1u]),
+                         bitcast<f32>(beam_power[b + 2u]), bitcast<f32>(beam_power[b + 3u]));
+    }
+    let b = i * 2u;
+    return vec4<f32>(unpack2x16float(beam_power[b]), unpack2x16float(beam_power[b + 1u]));
+}
+
+fn store_beam_power(i: u32, v: vec4<f32>) {
+    if (F32_STATE) {
+        let b = i * 4u;
+        beam_power[b] = bitcast<u32>(v.x);
+        beam_power[b + 1u] = bitcast<u32>(v.y);
+        beam_power[b + 2u] = bitcast<u32>(v.z);
+        beam_power[b + 3u] = bitcast<u32>(v.w);
+        return;
+    }
+    let b = i * 2u;
+    beam_power[b] = pack2x16float(v.xy);
+    beam_power[b + 1u] = pack2x16float(v.zw);
+}
+
+fn load_back_light(i: u32) -> vec4<f32> {
+    if (F32_STATE) {
+        let b = i * 4u;
+        return vec4<f32>(bitcast<f32>(back_light[b]), bitcast<f32>(back_light[b + 1u]),
+                         bitcast<f32>(back_light[b + 2u]), bitcast<f32>(back_light[b + 3u]));
+    }
+    let b = i * 2u;
+    return vec4<f32>(unpack2x16float(back_light[b]), unpack2x16float(back_light[b + 1u]));
+}
+
+fn store_back_light(i: u32, v: vec4<f32>) {
+    if (F32_STATE) {
+        let b = i * 4u;
+        back_light[b] = bitcast<u32>(v.x);
+        back_light[b + 1u] = bitcast<u32>(v.y);
+        back_light[b + 2u] = bitcast<u32>(v.z);
+        back_light[b + 3u] = bitcast<u32>(v.w);
+        return;
+    }
+    let b = i * 2u;
+    back_light[b] = pack2x16float(v.xy);
+    back_light[b + 1u] = pack2x16float(v.zw);
+}
+
+fn load_view_light(i: u32) -> vec4<f32> {
+    if (F32_STATE) {
+        let b = i * 4u;
+        return vec4<f32>(bitcast<f32>(view_light[b]), bitcast<f32>(view_light[b + 1u]),
+                         bitcast<f32>(view_light[b + 2u]), bitcast<f32>(view_light[b + 3u]));
+    }
+    let b = i * 2u;
+    return vec4<f32>(unpack2x16float(view_light[b]), unpack2x16float(view_light[b + 1u]));
+}
+
+fn store_view_light(i: u32, v: vec4<f32>) {
+    if (F32_STATE) {
+        let b = i * 4u;
+        view_light[b] = bitcast<u32>(v.x);
+        view_light[b + 1u] = bitcast<u32>(v.y);
+        view_light[b + 2u] = bitcast<u32>(v.z);
+        view_light[b + 3u] = bitcast<u32>(v.w);
+        return;
+    }
+    let b = i * 2u;
+    view_light[b] = pack2x16float(v.xy);
+    view_light[b + 1u] = pack2x16float(v.zw);
+}
 
 fn plane_z(i: u32) -> f32 {
     return P.plane.x + f32(i) * P.plane.y;
 }
 
-fn buffer_size() -> vec2<i32> {
+fn image_size() -> vec2<i32> {
     return vec2<i32>(i32(P.size.x), i32(P.size.y));
 }
 
-// Point on the plane at depth z seen through the centre of texel `t` (continuous texel coords).
+fn pixel_index(p: vec2<u32>) -> u32 {
+    return p.y * u32(P.size.x) + p.x;
+}
+
+// Point on the plane at depth z seen through continuous pixel coordinates `t`.
 fn unproject(t: vec2<f32>, z: f32) -> vec3<f32> {
     let ndc = (t + vec2<f32>(0.5) - P.projection.zw) / P.projection.xy;
     if (ORTHOGRAPHIC) {
@@ -136,15 +283,15 @@ fn unproject(t: vec2<f32>, z: f32) -> vec3<f32> {
     return vec3<f32>(ndc * z, z);
 }
 
-// Continuous texel coordinates of a view-space point (inverse of `unproject`).
+// Continuous pixel coordinates of a view-space point (inverse of `unproject`).
 // The perspective division needs no guard: every point projected lies on a plane of the
-// sweep (p.z = z_prev or z, to rounding; MIN_LIGHT_DIR_Z and MIN_VIEW_DIR_Z keep the steps
+// sweep (p.z = a plane's z, to rounding; MIN_LIGHT_DIR_Z and MIN_VIEW_DIR_Z keep the steps
 // onto it finite), and planes start at z_first >= NEAR_PLANE x radius > 0 (geometry.rs). The
-// rounding is a few ulp of Δs (<= 32 radii), of the light filter's offsets (<= MAX_SOFTNESS x
-// Δs) and of z: ~1e-5 radii, far below NEAR_PLANE x radius, and it scales with the scene, so
-// p.z > 0 at any spacing. A fixed floor such as 1e-6 view units would instead move planes
-// nearer than that: micrometre voxels given in metres would render differently from the same
-// voxels given in voxels (tests/extremes.rs, camera_inside_a_microscopic_volume).
+// rounding is a few ulp of Δs (<= 32 radii) and of z: ~1e-5 radii, far below NEAR_PLANE x
+// radius, and it scales with the scene, so p.z > 0 at any spacing. A fixed floor such as 1e-6
+// view units would instead move planes nearer than that: micrometre voxels given in metres
+// would render differently from the same voxels given in voxels (tests/extremes.rs,
+// camera_inside_a_microscopic_volume).
 fn project(p: vec3<f32>) -> vec2<f32> {
     var xy = p.xy;
     if (!ORTHOGRAPHIC) {
@@ -153,7 +300,16 @@ fn project(p: vec3<f32>) -> vec2<f32> {
     return xy * P.projection.xy + P.projection.zw - vec2<f32>(0.5);
 }
 
-// Direction of the straight primary ray through texel `t` (unit length).
+// Area of a pixel's footprint on the plane at depth z (view units²).
+fn pixel_area(z: f32) -> f32 {
+    let a = 1.0 / (P.projection.x * P.projection.y);
+    if (ORTHOGRAPHIC) {
+        return a;
+    }
+    return a * z * z;
+}
+
+// Direction of the straight primary ray through continuous pixel coordinates `t` (unit).
 fn primary_dir(t: vec2<f32>) -> vec3<f32> {
     if (ORTHOGRAPHIC) {
         return vec3<f32>(0.0, 0.0, 1.0);
@@ -161,27 +317,8 @@ fn primary_dir(t: vec2<f32>) -> vec3<f32> {
     return normalize(unproject(t, 1.0));
 }
 
-fn inside(t: vec2<f32>) -> bool {
-    let s = P.size.xy;
-    return t.x >= -0.5 && t.y >= -0.5 && t.x <= s.x - 0.5 && t.y <= s.y - 0.5;
-}
-
-// Bilinear fetch with manual weights, so that every buffer format filters the same way on
-// every device. Returns `outside` beyond the buffer (the unobstructed light).
-fn bilinear(tex: texture_2d<f32>, t: vec2<f32>, outside: vec4<f32>) -> vec4<f32> {
-    if (!inside(t)) {
-        return outside;
-    }
-    let lo = floor(t);
-    let f = t - lo;
-    let maxc = buffer_size() - vec2<i32>(1);
-    let a = clamp(vec2<i32>(lo), vec2<i32>(0), maxc);
-    let b = clamp(vec2<i32>(lo) + vec2<i32>(1), vec2<i32>(0), maxc);
-    let v00 = textureLoad(tex, vec2<i32>(a.x, a.y), 0);
-    let v10 = textureLoad(tex, vec2<i32>(b.x, a.y), 0);
-    let v01 = textureLoad(tex, vec2<i32>(a.x, b.y), 0);
-    let v11 = textureLoad(tex, vec2<i32>(b.x, b.y), 0);
-    return mix(mix(v00, v10, f.x), mix(v01, v11, f.x), f.y);
+fn in_rect(p: vec2<i32>) -> bool {
+    return p.x >= i32(P.rect.x) && p.y >= i32(P.rect.y) && p.x < i32(P.rect.z) && p.y < i32(P.rect.w);
 }
 
 fn volume_coord(p: vec3<f32>) -> vec3<f32> {
@@ -193,80 +330,77 @@ fn sample_value(p: vec3<f32>) -> f32 {
     return textureSampleLevel(volume_tex, volume_sampler, volume_coord(p), 0.0).r;
 }
 
-fn eta_of(x: f32) -> f32 {
-    let n = P.texel.w;
-    let t = clamp(x, 0.0, 1.0) * (n - 1.0);
-    let i = u32(floor(t));
-    let j = min(i + 1u, u32(n) - 1u);
-    let a = textureLoad(eta_table, vec2<u32>(i, 0u), 0).r;
-    let b = textureLoad(eta_table, vec2<u32>(j, 0u), 0).r;
-    return mix(a, b, t - f32(i));
+struct Index {
+    eta: f32,          // refractive index
+    grad: vec3<f32>,   // ∇η in view space (per view unit)
 }
 
-fn eta_source_value(uvw: vec3<f32>) -> f32 {
-    if (ETA_VOLUME) {
-        return textureSampleLevel(eta_volume_tex, volume_sampler, uvw, 0.0).r;
-    }
-    return textureSampleLevel(volume_tex, volume_sampler, uvw, 0.0).r;
-}
-
-// Refractive index at a view-space point.
-fn eta_at(p: vec3<f32>) -> f32 {
-    return eta_of(eta_source_value(volume_coord(p)));
-}
-
-struct Gradients {
-    value: vec3<f32>,  // ∇f in view space (data value per view unit)
-    eta: vec3<f32>,    // ∇η in view space, from η_tf applied to the neighbours (central differences)
-}
-
-// Differences one voxel apart. ∇η applies η_tf to each neighbour before differencing, so
-// steps in η_tf produce the right jump instead of the zero a chain rule would give.
-// GRADIENT 0: central differences (6 lookups, second order). GRADIENT 1: forward differences
-// (3 lookups + the centre, first order: the gradient of the point half a voxel ahead on each
-// axis); doubled to match the central-difference scaling of `gradient_to_view`.
-fn gradients(p: vec3<f32>, want_value: bool) -> Gradients {
-    let c = volume_coord(p);
-    var dv = vec3<f32>(0.0);
-    var de = vec3<f32>(0.0);
-    var centre_eta = 0.0;
-    var centre_value = 0.0;
-    if (GRADIENT == 1u) {
-        let s = eta_source_value(c);
-        centre_eta = eta_of(s);
-        centre_value = s;
-        if (ETA_VOLUME && want_value) {
-            centre_value = textureSampleLevel(volume_tex, volume_sampler, c, 0.0).r;
-        }
-    }
-    for (var k = 0; k < 3; k++) {
-        var h = vec3<f32>(0.0);
-        h[k] = P.texel[k];
-        let ep = eta_source_value(c + h);
-        if (GRADIENT == 1u) {
-            de[k] = 2.0 * (eta_of(ep) - centre_eta);
-            if (want_value) {
-                var vp = ep;
-                if (ETA_VOLUME) {
-                    vp = textureSampleLevel(volume_tex, volume_sampler, c + h, 0.0).r;
-                }
-                dv[k] = 2.0 * (vp - centre_value);
-            }
-        } else {
-            let em = eta_source_value(c - h);
-            de[k] = eta_of(ep) - eta_of(em);
-            if (want_value) {
-                if (ETA_VOLUME) {
-                    dv[k] = textureSampleLevel(volume_tex, volume_sampler, c + h, 0.0).r
-                          - textureSampleLevel(volume_tex, volume_sampler, c - h, 0.0).r;
-                } else {
-                    dv[k] = ep - em;
-                }
-            }
-        }
-    }
+// Refractive index and its gradient at a view-space point: one trilinear fetch of the
+// gradient volume (precomputed when the transfer functions change).
+fn index_at(p: vec3<f32>) -> Index {
+    let g = textureSampleLevel(gradient_tex, volume_sampler, volume_coord(p), 0.0);
     let m = mat3x3<f32>(P.gradient_to_view[0].xyz, P.gradient_to_view[1].xyz, P.gradient_to_view[2].xyz);
-    return Gradients(m * dv, m * de);
+    return Index(g.w + P.texel.w, m * g.xyz);
+}
+
+// The unit vector of v = η·direction with its magnitude set to η while keeping the component
+// tangential to the interface (normal ∇η): Snell's law for any step size. Where the
+// tangential part alone exceeds η (total internal reflection) the normal part changes sign:
+// the ray is reflected.
+fn snell_renormalise(v: vec3<f32>, ix: Index) -> vec3<f32> {
+    let gl = length(ix.grad);
+    if (gl <= MIN_GRADIENT_LENGTH) {
+        return v;
+    }
+    let n = ix.grad / gl;
+    let vn = dot(v, n);
+    let vt = v - vn * n;
+    let t2 = dot(vt, vt);
+    let e2 = ix.eta * ix.eta;
+    if (t2 >= e2) {
+        return vt - vn * n;
+    }
+    return vt + sign_or_one(vn) * sqrt(e2 - t2) * n;
+}
+
+fn sign_or_one(x: f32) -> f32 {
+    if (x < 0.0) {
+        return -1.0;
+    }
+    return 1.0;
+}
+
+// The direction v = η·d a ray travelling along `d` (unit, outside the volume where the index
+// is η_outside) has after entering the index `eta` through a face parallel to the planes:
+// Snell's law keeps the component along the planes (the paper's init v = η·d does not).
+fn entering(d: vec3<f32>, eta: f32) -> vec3<f32> {
+    let t = d.xy * P.texel.w;
+    let t2 = dot(t, t);
+    return vec3<f32>(t, sqrt(max(eta * eta - t2, 0.0)));
+}
+
+// Unit propagation direction with z bounded away from 0: light may not turn back or travel
+// inside a plane (the sweep only moves forward).
+fn light_direction(v: vec3<f32>) -> vec3<f32> {
+    var d = safe_normalize(v);
+    let min_z = P.limits.x;
+    if (d.z < min_z && guarded(SG_LIGHT_MIN_Z)) {
+        let side = safe_normalize(vec3<f32>(d.xy, 0.0)).xy;
+        d = vec3<f32>(side * sqrt(1.0 - min_z * min_z), min_z);
+    }
+    return d;
+}
+
+// Where the unrefracted light through plane-0 point `p0` crosses the plane at depth z.
+fn unrefracted(p0: vec3<f32>, z: f32) -> vec3<f32> {
+    return p0 + P.light_dir.xyz * ((z - p0.z) / P.light_dir.z);
+}
+
+// Light arriving at a point: relative to the source (fluence for the image), and the
+// direction it travels (unit) for highlights.
+struct LightSample {
+    color: vec3<f32>,
+    dir: vec3<f32>,
 }
 
 // Pre-integrated segment from value a (front) to value b (back), length `ratio` × Δs.
@@ -292,6 +426,15 @@ fn segment_medium(a: f32, b: f32, ratio: f32) -> vec3<f32> {
     return exp(-tau * ratio);
 }
 
+// What a segment lets through: (1 − α)·m (Eq. 9).
+fn segment_transmittance(a: f32, b: f32, ratio: f32, clipped: bool) -> vec3<f32> {
+    var t = vec3<f32>(1.0 - segment_particles(a, b, ratio, clipped).a);
+    if (MEDIUM) {
+        t *= segment_medium(a, b, ratio);
+    }
+    return t;
+}
+
 fn table_uv(a: f32, b: f32) -> vec2<f32> {
     let n = f32(textureDimensions(particle_table).x);
     return (clamp(vec2<f32>(a, b), vec2<f32>(0.0), vec2<f32>(1.0)) * (n - 1.0) + 0.5) / n;
@@ -304,8 +447,7 @@ fn is_clipped(p: vec3<f32>) -> bool {
     return false;
 }
 
-// Integer hash (PCG-style) for the per-texel random rotation of the filter kernel;
-// deterministic, so two renders give identical bytes.
+// Integer hash (PCG-style); deterministic, so two renders give identical bytes.
 fn hash(x: u32) -> u32 {
     var v = x * 747796405u + 2891336453u;
     v = ((v >> ((v >> 28u) + 4u)) ^ v) * 277803737u;

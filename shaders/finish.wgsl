@@ -1,25 +1,45 @@
 // Final pass: environment lookup with the bent view direction and Oddy–Willis blending
 // (Section 4.4), or one of the diagnostic buffers.
 
-fn env_dir_at(texel: vec2<i32>) -> vec3<f32> {
-    let c = clamp(texel, vec2<i32>(0), buffer_size() - vec2<i32>(1));
-    var d = primary_dir(vec2<f32>(c));
-    if (REFRACTION) {
-        d = textureLoad(view_dir_in, c, 0).xyz;
+// Final direction of the view ray of pixel p (unit, view space).
+fn final_dir(p: vec2<i32>) -> vec3<f32> {
+    let c = clamp(p, vec2<i32>(0), image_size() - vec2<i32>(1));
+    if (REFRACTION && in_rect(c)) {
+        let i = pixel_index(vec2<u32>(c));
+        return normalize(vec3<f32>(view_ray[i].zw, view_aux[i].x));
     }
+    return primary_dir(vec2<f32>(c));
+}
+
+fn env_dir(d: vec3<f32>) -> vec3<f32> {
     return normalize((P.world_from_view * vec4<f32>(d, 0.0)).xyz);
 }
 
 // Equirectangular lookup (y up). The mip level follows the angle between neighbouring rays,
-// which refraction can make large: without it the background turns to noise.
-fn environment(texel: vec2<i32>) -> vec3<f32> {
+// which refraction can make large: without it the background turns to noise. The neighbours
+// are the next pixel, or the previous one on the last row and column (a clamped neighbour
+// would be the pixel itself: footprint 0, the finest level, aliasing).
+fn environment(p: vec2<i32>) -> vec3<f32> {
     if (P.background.w < 0.5) {
         return P.background.rgb;
     }
-    let d = env_dir_at(texel);
-    let dx = env_dir_at(texel + vec2<i32>(1, 0));
-    let dy = env_dir_at(texel + vec2<i32>(0, 1));
-    let angle = max(acos(clamp(dot(d, dx), -1.0, 1.0)), acos(clamp(dot(d, dy), -1.0, 1.0)));
+    let size = image_size();
+    let d = env_dir(final_dir(p));
+    var sx = 1;
+    if (p.x + 1 >= size.x) {
+        sx = -1;
+    }
+    var sy = 1;
+    if (p.y + 1 >= size.y) {
+        sy = -1;
+    }
+    var angle = 0.0;
+    if (size.x > 1) {
+        angle = max(angle, acos(clamp(dot(d, env_dir(final_dir(p + vec2<i32>(sx, 0)))), -1.0, 1.0)));
+    }
+    if (size.y > 1) {
+        angle = max(angle, acos(clamp(dot(d, env_dir(final_dir(p + vec2<i32>(0, sy)))), -1.0, 1.0)));
+    }
     let width = f32(textureDimensions(env_tex).x);
     // Footprint: environment texels between neighbouring rays. Up to one texel the full
     // resolution is right, and the branch keeps log2 inside its domain (x > 0) without an
@@ -35,45 +55,92 @@ fn environment(texel: vec2<i32>) -> vec3<f32> {
     return textureSampleLevel(env_tex, env_sampler, uv, lod).rgb * P.shading.w;
 }
 
+// Light on plane k at pixel p, for the diagnostic views: what was deposited there (beams) or
+// the light grid at the pixel's point.
+fn debug_light(k: u32, p: vec2<u32>) -> LightSample {
+    let x = unproject(vec2<f32>(p), plane_z(k));
+    if (BEAMS) {
+        let channels = P.tiles.w;
+        var c = vec3<f32>(0.0);
+        var dir = P.light_dir.xyz;
+        if (in_rect(vec2<i32>(p))) {
+            let texel = (k % 3u) * u32(P.size.x) * u32(P.size.y) * channels + pixel_index(p) * channels;
+            c = vec3<f32>(f32(min(atomicLoad(&light_acc[texel]), ACC_SATURATED)));
+            if (MEDIUM) {
+                c.g = f32(min(atomicLoad(&light_acc[texel + 1u]), ACC_SATURATED));
+                c.b = f32(min(atomicLoad(&light_acc[texel + 2u]), ACC_SATURATED));
+            }
+            c /= ACC_SCALE;
+            if (deposits_direction()) {
+                var nc = 1u;
+                if (MEDIUM) {
+                    nc = 3u;
+                }
+                let s = vec3<f32>(
+                    f32(bitcast<i32>(atomicLoad(&light_acc[texel + nc]))),
+                    f32(bitcast<i32>(atomicLoad(&light_acc[texel + nc + 1u]))),
+                    f32(bitcast<i32>(atomicLoad(&light_acc[texel + nc + 2u]))));
+                if (dot(s, s) > 0.0) {
+                    dir = normalize(s);
+                }
+            }
+        }
+        c += vec3<f32>(outside_fraction(vec2<f32>(p), beam_region_outside(k)));
+        return LightSample(c, dir);
+    }
+    let g = grid_bilinear(k % 3u, grid_coords(x));
+    var dir = P.light_dir.xyz;
+    if (REFRACTION) {
+        dir = light_direction(g.dir.xyz);
+    }
+    var c = g.light.rgb;
+    if (DEBUG_VIEW == 1u) {
+        // Irradiance on the plane, relative to the source's.
+        c *= dir.z / P.light_dir.z;
+    }
+    if (DEBUG_VIEW == 3u) {
+        c = vec3<f32>(g.dir.w);
+    }
+    return LightSample(c, dir);
+}
+
 @compute @workgroup_size(8, 8, 1)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let size = buffer_size();
+fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(global_invocation_id) gid: vec3<u32>) {
+    let size = image_size();
     if (i32(gid.x) >= size.x || i32(gid.y) >= size.y) {
         return;
     }
-    let texel = vec2<i32>(gid.xy);
+    let k = dispatch_plane(wg);
+    let p = vec2<i32>(gid.xy);
+    let i = pixel_index(gid.xy);
     var out = vec4<f32>(0.0, 0.0, 0.0, 1.0);
+    var color = vec4<f32>(0.0);
     var medium = vec3<f32>(1.0);
-    if (MEDIUM) {
-        medium = textureLoad(medium_in, texel, 0).rgb;
+    if (in_rect(p)) {
+        color = load_view_color(i);
+        if (MEDIUM) {
+            medium = load_view_medium(i).rgb;
+        }
     }
     switch DEBUG_VIEW {
         case 1u: {
-            out = vec4<f32>(textureLoad(light_in, texel, 0).rgb, 1.0);
+            out = vec4<f32>(debug_light(k, gid.xy).color, 1.0);
         }
         case 2u: {
-            var d = P.light_dir.xyz;
-            if (REFRACTION) {
-                d = normalize(textureLoad(light_dir_in, texel, 0).xyz);
-            }
-            out = vec4<f32>(d * 0.5 + 0.5, 1.0);
+            out = vec4<f32>(debug_light(k, gid.xy).dir * 0.5 + 0.5, 1.0);
         }
         case 3u: {
-            // Concentration of the light (product of the intensity ratios); 1 shows as 0.5.
-            var ratio = 1.0;
-            if (REFRACTION) {
-                ratio = textureLoad(light_dir_in, texel, 0).w;
-            }
-            out = vec4<f32>(vec3<f32>(0.5 * ratio), 1.0);
+            // Concentration of the light (beams: the fluence; backward: the product of the
+            // intensity ratios); 1 shows as 0.5.
+            out = vec4<f32>(0.5 * debug_light(k, gid.xy).color, 1.0);
         }
         case 4u: {
             out = vec4<f32>(medium, 1.0);
         }
         default: {
-            let c = textureLoad(color_in, texel, 0);
-            let env = environment(texel);
-            out = vec4<f32>(c.rgb + (1.0 - c.a) * medium * env, 1.0);
+            let env = environment(p);
+            out = vec4<f32>(color.rgb + (1.0 - color.a) * medium * env, 1.0);
         }
     }
-    textureStore(image_out, texel, out);
+    image_out[i] = out;
 }

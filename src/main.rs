@@ -191,7 +191,7 @@ fn render(args: &RenderArgs) -> Result<()> {
     let s = &out.stats;
     if args.timings {
         println!(
-            "device: {}\nfeatures: {}\nprecision: {}\nplanes: {} (integrated {})\nms per plane: {:.3}\ntotal GPU ms: {:.1}\nstate buffers: {:.1} MiB",
+            "device: {}\nfeatures: {}\nprecision: {}\nplanes: {} (integrated {})\nms per plane: {:.3}\ntotal GPU ms: {:.1}\nstate buffers: {:.1} MiB\nlight grid: {}×{} cells ({})\nvolume footprint: {}×{} pixels",
             ctx.info.name,
             s.features.describe(),
             s.precision.name(),
@@ -199,7 +199,12 @@ fn render(args: &RenderArgs) -> Result<()> {
             s.planes_run,
             s.ms_per_plane,
             s.gpu_ms,
-            s.state_bytes as f64 / (1024.0 * 1024.0)
+            s.state_bytes as f64 / (1024.0 * 1024.0),
+            s.light_grid[0],
+            s.light_grid[1],
+            s.features.transport.name(),
+            s.rect[0],
+            s.rect[1],
         );
     }
     eprintln!("wrote {} ({}×{})", args.output.display(), args.size.0, args.size.1);

@@ -193,6 +193,11 @@ pub const MAX_LIGHT_RADIANCE: f32 = 16384.0;
 /// what bounds caustics anyway, for any light of intensity ≥ 1.
 pub const MAX_CONCENTRATION: f32 = 16384.0;
 
+/// Range of `quality.beams_per_texel`: below 1/4 a beam covers 16 texels and shadows turn
+/// blocky; above 4 the beam buffers hold 16 times the image.
+pub const MIN_BEAMS_PER_TEXEL: f32 = 0.25;
+pub const MAX_BEAMS_PER_TEXEL: f32 = 4.0;
+
 /// Largest `shading.specular` (a scale of the Cook–Torrance term; 1 is physical).
 pub const MAX_SPECULAR: f32 = 100.0;
 
@@ -338,6 +343,42 @@ impl Gradient {
     }
 }
 
+/// How light travels from plane to plane.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum LightTransport {
+    /// Forward beams: one beam per light texel carries position, direction and power from
+    /// plane to plane and deposits its power onto each plane over its footprint. Rays may
+    /// cross, power is conserved, and light is never resampled.
+    #[default]
+    Beams,
+    /// The paper's backward (semi-Lagrangian) scheme with the intensity law: light is looked
+    /// up on the previous plane along the stored direction. Cheaper per plane, but rays cannot
+    /// cross, so light behind a focus stays concentrated (bounded by the power budget).
+    Backward,
+}
+
+impl LightTransport {
+    pub fn parse(s: &str) -> Option<LightTransport> {
+        match s {
+            "beams" => Some(LightTransport::Beams),
+            "backward" => Some(LightTransport::Backward),
+            _ => None,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            LightTransport::Beams => "beams",
+            LightTransport::Backward => "backward",
+        }
+    }
+}
+
+/// Default power budget of the backward transport: it cannot spread light again behind a
+/// focus, so the budget is what bounds it there (see README, "Numerical safeguards").
+pub const BACKWARD_MAX_CONCENTRATION: f32 = 64.0;
+
 /// The speed/accuracy knobs.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -356,9 +397,16 @@ pub struct Quality {
     /// Storage precision of the light, colour and medium state buffers.
     pub precision: Precision,
     /// Power budget of the caustics: light is never more than this many times the source
-    /// light anywhere. Bounds the light behind a focus, where the backward scheme cannot
-    /// spread it again (see README, "Numerical safeguards").
-    pub max_concentration: f32,
+    /// light anywhere. Unset: [`MAX_CONCENTRATION`] with beams (a safeguard that physical
+    /// scenes do not reach) and [`BACKWARD_MAX_CONCENTRATION`] with the backward transport,
+    /// where it bounds the light behind a focus (see README, "Numerical safeguards").
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_concentration: Option<f32>,
+    /// How light travels from plane to plane.
+    pub light_transport: LightTransport,
+    /// Beams per image texel along each axis on the first plane (beams transport): 1 maps one
+    /// beam to each texel; 2 traces four times as many beams for smoother caustics.
+    pub beams_per_texel: f32,
     /// Reconstruction of ∇η.
     pub gradient: Gradient,
 }
@@ -374,9 +422,21 @@ impl Default for Quality {
             termination_opacity: 0.995,
             max_intensity_ratio: 4.0,
             precision: Precision::F16,
-            max_concentration: 64.0,
+            max_concentration: None,
+            light_transport: LightTransport::Beams,
+            beams_per_texel: 1.0,
             gradient: Gradient::Central,
         }
+    }
+}
+
+impl Quality {
+    /// The power budget in effect: the scene's, or the transport's default.
+    pub fn max_concentration(&self) -> f32 {
+        self.max_concentration.unwrap_or(match self.light_transport {
+            LightTransport::Beams => MAX_CONCENTRATION,
+            LightTransport::Backward => BACKWARD_MAX_CONCENTRATION,
+        })
     }
 }
 
@@ -464,8 +524,16 @@ impl Scene {
         if !(q.max_intensity_ratio.is_finite() && q.max_intensity_ratio >= 1.0) {
             return bad("quality.max_intensity_ratio must be ≥ 1".into());
         }
-        if !(q.max_concentration.is_finite() && (1.0..=MAX_CONCENTRATION).contains(&q.max_concentration)) {
-            return bad(format!("quality.max_concentration must be in [1, {MAX_CONCENTRATION}]"));
+        if let Some(c) = q.max_concentration {
+            if !(c.is_finite() && (1.0..=MAX_CONCENTRATION).contains(&c)) {
+                return bad(format!("quality.max_concentration must be in [1, {MAX_CONCENTRATION}]"));
+            }
+        }
+        if !(q.beams_per_texel.is_finite() && (MIN_BEAMS_PER_TEXEL..=MAX_BEAMS_PER_TEXEL).contains(&q.beams_per_texel)) {
+            return bad(format!(
+                "quality.beams_per_texel {} must be in [{MIN_BEAMS_PER_TEXEL}, {MAX_BEAMS_PER_TEXEL}]",
+                q.beams_per_texel
+            ));
         }
         if !(0.0..=1.0).contains(&q.termination_opacity) {
             return bad("quality.termination_opacity must be in [0, 1]".into());
@@ -555,10 +623,11 @@ mod tests {
         let base = builtin("ball-lens").unwrap().scene;
         base.validate().unwrap();
         type Edit = fn(&mut Scene, f32);
-        let fields: [(&str, Edit); 16] = [
+        let fields: [(&str, Edit); 17] = [
             ("sample_distance", |s, v| s.quality.sample_distance = v),
             ("max_intensity_ratio", |s, v| s.quality.max_intensity_ratio = v),
-            ("max_concentration", |s, v| s.quality.max_concentration = v),
+            ("max_concentration", |s, v| s.quality.max_concentration = Some(v)),
+            ("beams_per_texel", |s, v| s.quality.beams_per_texel = v),
             ("termination_opacity", |s, v| s.quality.termination_opacity = v),
             ("light.polar_deg", |s, v| s.light.polar_deg = v),
             ("light.azimuth_deg", |s, v| s.light.azimuth_deg = v),

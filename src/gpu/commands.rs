@@ -247,6 +247,37 @@ impl Recorder {
         }
     }
 
+    /// Fills a buffer with a repeated 32-bit word and makes the fill visible to compute shaders.
+    pub fn fill(&mut self, dst: &Buffer, word: u32) {
+        // SAFETY: recording state; the buffer is alive until completion and was created with
+        // TRANSFER_DST (`Buffer::new_device`).
+        unsafe { self.d().cmd_fill_buffer(self.cmd, dst.raw, 0, vk::WHOLE_SIZE, word) };
+        self.memory_barrier(
+            vk::PipelineStageFlags::TRANSFER,
+            vk::AccessFlags::TRANSFER_WRITE,
+            vk::PipelineStageFlags::COMPUTE_SHADER,
+            vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE,
+        );
+    }
+
+    /// Copies the first `bytes` of `src` into `dst` and makes them visible to the host.
+    pub fn copy_buffer(&mut self, src: &Buffer, dst: &Buffer, bytes: u64) {
+        let region = vk::BufferCopy {
+            src_offset: 0,
+            dst_offset: 0,
+            size: bytes,
+        };
+        // SAFETY: recording state; both buffers alive until completion; `bytes` fits both
+        // (the caller sizes them).
+        unsafe { self.d().cmd_copy_buffer(self.cmd, src.raw, dst.raw, &[region]) };
+        self.memory_barrier(
+            vk::PipelineStageFlags::TRANSFER,
+            vk::AccessFlags::TRANSFER_WRITE,
+            vk::PipelineStageFlags::HOST,
+            vk::AccessFlags::HOST_READ,
+        );
+    }
+
     /// Copies mip 0 of a 2D image into a buffer, tightly packed.
     pub fn copy_to_buffer(&mut self, src: &Image, dst: &Buffer) {
         let region = vk::BufferImageCopy {

@@ -161,7 +161,7 @@ pub struct DescriptorSet {
 
 /// A resource to write into a binding slot.
 pub enum Resource<'a> {
-    Uniform(&'a Buffer),
+    Buffer(&'a Buffer),
     Image(&'a Image),
     Sampler(&'a Sampler),
 }
@@ -216,7 +216,7 @@ impl DescriptorSet {
                     message: format!("no binding {index} in the layout"),
                 })?;
             match (kind, res) {
-                (BindingKind::Uniform | BindingKind::StorageBuffer, Resource::Uniform(b)) => buffer_infos.push((
+                (BindingKind::Uniform | BindingKind::StorageBuffer, Resource::Buffer(b)) => buffer_infos.push((
                     *index,
                     kind,
                     vk::DescriptorBufferInfo {

@@ -100,6 +100,24 @@ impl Buffer {
         Self::new(ctx, label, size, usage, MemoryLocation::CpuToGpu)
     }
 
+    /// A buffer only the GPU reads and writes (shader storage, fills and copies).
+    pub fn new_device(ctx: &Arc<Context>, label: &str, size: u64) -> Result<Self, GpuError> {
+        let range = ctx.limits().max_storage_buffer_range as u64;
+        if size > range {
+            return Err(GpuError::OutOfDeviceMemory {
+                what: format!("{label} (larger than the device's storage buffer range of {range} bytes)"),
+                bytes: size,
+            });
+        }
+        Self::new(
+            ctx,
+            label,
+            size,
+            vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST | vk::BufferUsageFlags::TRANSFER_SRC,
+            MemoryLocation::GpuOnly,
+        )
+    }
+
     /// A buffer the GPU writes and the CPU reads back.
     pub fn new_readback(ctx: &Arc<Context>, label: &str, size: u64) -> Result<Self, GpuError> {
         Self::new(

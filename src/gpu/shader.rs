@@ -16,7 +16,12 @@ pub struct ShaderSource {
 }
 
 fn validator() -> Validator {
-    Validator::new(ValidationFlags::all(), Capabilities::IMMEDIATES)
+    Validator::new(
+        ValidationFlags::all(),
+        // pack2x16float / unpack2x16float keep the 16-bit state; SPIR-V has them as
+        // GLSL.std.450 instructions on 32-bit values, available on every Vulkan device.
+        Capabilities::IMMEDIATES | Capabilities::SHADER_FLOAT16_IN_FLOAT32,
+    )
 }
 
 impl ShaderSource {

@@ -1,7 +1,7 @@
 //! `Features`: what a scene needs the renderer to model. Each feature is an `override` constant
 //! in the shaders; a disabled feature is constant-folded away and its buffers are not allocated.
 
-use crate::scene::{Gradient, Projection, Scene, Toggle};
+use crate::scene::{Gradient, LightTransport, Precision, Projection, Scene, Toggle};
 use crate::transfer::TransferFunctions;
 
 /// What one image needs. Derived from the scene ([`Features::for_scene`]).
@@ -13,15 +13,18 @@ pub struct Features {
     pub medium: bool,
     /// Soft light: three-sample incremental convolution.
     pub light_filter: bool,
-    /// Intensity law (caustics). Only meaningful with refraction.
+    /// Intensity law (caustics) of the backward transport. Only meaningful with refraction.
     pub intensity_correction: bool,
     /// Cook–Torrance highlights; their Fresnel term needs an index change, so only with refraction.
     pub specular: bool,
     pub clip: bool,
+    /// η comes from a second volume (baked into the gradient volume; no shader switch).
     pub eta_volume: bool,
     pub orthographic: bool,
-    /// Reconstruction of ∇η (and of the normal for highlights); only used with refraction.
+    /// Reconstruction of ∇η in the gradient volume; only used with refraction.
     pub gradient: Gradient,
+    /// Light transport: forward beams, or backward lookups.
+    pub transport: LightTransport,
 }
 
 /// Diagnostic buffers `--debug-view` can show instead of the image.
@@ -47,7 +50,7 @@ impl DebugView {
         })
     }
 
-    fn code(self) -> u32 {
+    pub fn code(self) -> u32 {
         self as u32
     }
 }
@@ -64,19 +67,18 @@ impl Features {
             refraction,
             medium: !tf.medium_is_white(),
             light_filter: q.light_filter && scene.light.softness > 0.0,
-            intensity_correction: refraction && q.intensity_correction,
+            intensity_correction: refraction && q.intensity_correction && q.light_transport == LightTransport::Backward,
             specular: refraction && q.specular && scene.shading.specular > 0.0,
             clip: scene.clip.is_some(),
             eta_volume: refraction && scene.eta_volume.is_some(),
             orthographic: scene.camera.projection == Projection::Orthographic,
             // Without refraction no gradient is computed: one variant is enough.
             gradient: if refraction { q.gradient } else { Gradient::Central },
+            transport: q.light_transport,
         }
     }
 
-    /// Every combination of the boolean features (for shader validation). The gradient
-    /// scheme alternates with the parity of the combination, so that each scheme meets every
-    /// feature switched on and off without doubling the variant count.
+    /// Every combination of the boolean shader switches (for shader validation).
     pub fn all_combinations() -> Vec<Features> {
         (0u32..256)
             .map(|bits| {
@@ -88,12 +90,13 @@ impl Features {
                     intensity_correction: b(3),
                     specular: b(4),
                     clip: b(5),
-                    eta_volume: b(6),
-                    orthographic: b(7),
-                    gradient: if bits.count_ones() % 2 == 1 {
-                        Gradient::Forward
+                    eta_volume: false,
+                    orthographic: b(6),
+                    gradient: Gradient::Central,
+                    transport: if b(7) {
+                        LightTransport::Backward
                     } else {
-                        Gradient::Central
+                        LightTransport::Beams
                     },
                 }
             })
@@ -101,7 +104,7 @@ impl Features {
     }
 
     /// The `override` constants of this variant, as naga expects them.
-    pub fn constants(&self, debug: DebugView) -> Vec<(&'static str, f64)> {
+    pub fn constants(&self, debug: DebugView, precision: Precision) -> Vec<(&'static str, f64)> {
         let f = |b: bool| if b { 1.0 } else { 0.0 };
         vec![
             ("REFRACTION", f(self.refraction)),
@@ -110,12 +113,12 @@ impl Features {
             ("INTENSITY_CORRECTION", f(self.intensity_correction)),
             ("SPECULAR", f(self.specular)),
             ("CLIP", f(self.clip)),
-            ("ETA_VOLUME", f(self.eta_volume)),
             ("ORTHOGRAPHIC", f(self.orthographic)),
+            ("BEAMS", f(self.transport == LightTransport::Beams)),
+            ("F32_STATE", f(precision == Precision::F32)),
             ("DEBUG_VIEW", debug.code() as f64),
             // Every safeguard on; see `Renderer` for the test-only way to switch them off.
             ("SAFEGUARDS_OFF", 0.0),
-            ("GRADIENT", self.gradient.code() as f64),
         ]
     }
 
@@ -124,7 +127,10 @@ impl Features {
         let mut v = Vec::new();
         for (on, name) in [
             (self.refraction, "refraction"),
-            (self.intensity_correction, "caustics"),
+            (
+                self.refraction && (self.intensity_correction || self.transport == LightTransport::Beams),
+                "caustics",
+            ),
             (self.medium, "medium"),
             (self.light_filter, "soft-light"),
             (self.specular, "specular"),
@@ -132,6 +138,7 @@ impl Features {
             (self.eta_volume, "eta-volume"),
             (self.orthographic, "orthographic"),
             (self.gradient == Gradient::Forward, "forward-gradient"),
+            (self.transport == LightTransport::Backward, "backward"),
         ] {
             if on {
                 v.push(name);

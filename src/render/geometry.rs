@@ -25,6 +25,55 @@ pub const MAX_PLANES: u32 = 1 << 15;
 /// the world's up axis and the camera's right axis (up × forward) would be the zero vector.
 pub const MAX_PITCH_DEG: f32 = 89.0;
 
+/// The sweep starts this many voxels (smallest spacing) in front of the volume's box and ends
+/// as far behind it: trilinear sampling reaches half a voxel beyond the box, and the first
+/// segment must see the whole index step at the volume's face (Snell's law at the boundary).
+pub const SWEEP_MARGIN_VOXELS: f32 = 1.0;
+
+/// At most this many beams per image pixel (× beams_per_texel²): a light nearly parallel to
+/// the planes would otherwise need beams along a shadow many images long. Beyond it the
+/// beams get wider (coarser light).
+pub const MAX_BEAMS_PER_PIXEL: f32 = 2.0;
+
+/// Pixels of the image whose rays can meet the volume: the projection of its box, a pixel
+/// wider on each side for the bilinear taps of light lookups. Half-open: x0 ≤ x < x1.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PixelRect {
+    pub x0: u32,
+    pub y0: u32,
+    pub x1: u32,
+    pub y1: u32,
+}
+
+impl PixelRect {
+    pub fn width(&self) -> u32 {
+        self.x1 - self.x0
+    }
+    pub fn height(&self) -> u32 {
+        self.y1 - self.y0
+    }
+}
+
+/// The beams of the forward light transport: a regular grid of cells on plane 0, in that
+/// plane's pixel coordinates (pixel u spans [u, u + 1)). Beam (i, j) starts at the centre of
+/// cell [x0 + i·stride, x0 + (i + 1)·stride) × [y0 + j·stride, …) and carries the light that
+/// crosses it. The grid covers the volume's shadow on the planes the image needs; light
+/// outside it is unobstructed and not traced.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BeamGrid {
+    pub x0: f32,
+    pub y0: f32,
+    pub stride: f32,
+    pub width: u32,
+    pub height: u32,
+}
+
+impl BeamGrid {
+    pub fn count(&self) -> u64 {
+        self.width as u64 * self.height as u64
+    }
+}
+
 /// The view transform and plane sweep of one render.
 #[derive(Clone, Debug)]
 pub struct ViewSetup {
@@ -39,6 +88,12 @@ pub struct ViewSetup {
     pub step: f32,
     pub planes: u32,
     pub projection: [f32; 4],
+    pub perspective: bool,
+    /// Pixels whose rays can meet the volume.
+    pub rect: PixelRect,
+    /// Image size.
+    pub width: u32,
+    pub height: u32,
 }
 
 pub fn camera_position(camera: &Camera, radius: f32) -> (Vec3, Vec3) {
@@ -68,20 +123,19 @@ impl ViewSetup {
 
         let min_spacing = spacing.iter().copied().fold(f32::INFINITY, f32::min);
         let step = scene.quality.sample_distance * min_spacing;
+        let margin = SWEEP_MARGIN_VOXELS * min_spacing;
+        let corners = box_corners(extent, margin);
         let (mut z_min, mut z_max) = (f32::INFINITY, f32::NEG_INFINITY);
-        for i in 0..8 {
-            let corner = Vec3::new(
-                if i & 1 == 0 { -0.5 } else { 0.5 },
-                if i & 2 == 0 { -0.5 } else { 0.5 },
-                if i & 4 == 0 { -0.5 } else { 0.5 },
-            ) * extent;
-            let z = view_from_world.transform_point3(corner).z;
+        for c in &corners {
+            let z = view_from_world.transform_point3(*c).z;
             z_min = z_min.min(z);
             z_max = z_max.max(z);
         }
         let perspective = scene.camera.projection == Projection::Perspective;
+        let near = NEAR_PLANE * radius;
+        let inside = perspective && z_min < near;
         if perspective {
-            z_min = z_min.max(NEAR_PLANE * radius);
+            z_min = z_min.max(near);
         }
         if z_max <= z_min {
             return Err("the volume is behind the camera".into());
@@ -98,7 +152,7 @@ impl ViewSetup {
         } else {
             h / (2.0 * radius / scene.camera.zoom)
         };
-        Ok(ViewSetup {
+        let mut setup = ViewSetup {
             view_from_world,
             world_from_view,
             tex_from_world,
@@ -108,7 +162,108 @@ impl ViewSetup {
             step,
             planes: planes as u32,
             projection: [f, f, w * 0.5, h * 0.5],
-        })
+            perspective,
+            rect: PixelRect {
+                x0: 0,
+                y0: 0,
+                x1: width,
+                y1: height,
+            },
+            width,
+            height,
+        };
+        if !inside {
+            // The box in front of the camera: its projection bounds every pixel that meets it.
+            let (mut lo, mut hi) = (glam::Vec2::splat(f32::INFINITY), glam::Vec2::splat(f32::NEG_INFINITY));
+            for c in &corners {
+                let p = setup.pixel_of(view_from_world.transform_point3(*c));
+                lo = lo.min(p);
+                hi = hi.max(p);
+            }
+            // One pixel of slack for the bilinear taps of light lookups next to the box.
+            let clamp = |v: f32, n: u32| v.clamp(0.0, n as f32) as u32;
+            setup.rect = PixelRect {
+                x0: clamp(lo.x.floor() - 1.0, width),
+                y0: clamp(lo.y.floor() - 1.0, height),
+                x1: clamp(hi.x.ceil() + 1.0, width),
+                y1: clamp(hi.y.ceil() + 1.0, height),
+            };
+        }
+        Ok(setup)
+    }
+
+    /// Depth of plane `i`.
+    pub fn plane_z(&self, i: u32) -> f32 {
+        self.z_first + i as f32 * self.step
+    }
+
+    /// Continuous pixel coordinates (pixel u spans [u, u + 1)) of a view-space point, as the
+    /// shaders' `project` plus one half.
+    pub fn pixel_of(&self, p: Vec3) -> glam::Vec2 {
+        let [fx, fy, cx, cy] = self.projection;
+        let xy = if self.perspective { p.truncate() / p.z } else { p.truncate() };
+        glam::Vec2::new(xy.x * fx + cx, xy.y * fy + cy)
+    }
+
+    /// The view-space point on the plane at depth `z` at continuous pixel coordinates `px`.
+    pub fn point_at(&self, px: glam::Vec2, z: f32) -> Vec3 {
+        let [fx, fy, cx, cy] = self.projection;
+        let ndc = glam::Vec2::new((px.x - cx) / fx, (px.y - cy) / fy);
+        if self.perspective {
+            (ndc * z).extend(z)
+        } else {
+            ndc.extend(z)
+        }
+    }
+
+    /// The beams of the forward transport for light travelling along `light` (view space,
+    /// unit, z > 0), `beams_per_texel` per pixel and axis on plane 0. They cover the box's
+    /// shadow (what the volume can change) intersected with the light that reaches the pixels
+    /// of [`ViewSetup::rect`] on any plane; everything else is unobstructed light.
+    pub fn beam_grid(&self, light: Vec3, beams_per_texel: f32) -> BeamGrid {
+        let z0 = self.z_first;
+        let z_last = self.plane_z(self.planes - 1);
+        let to_plane0 = |p: Vec3| self.pixel_of(p - light * ((p.z - z0) / light.z));
+        let bounds = |points: &mut dyn Iterator<Item = glam::Vec2>| {
+            points.fold(
+                (glam::Vec2::splat(f32::INFINITY), glam::Vec2::splat(f32::NEG_INFINITY)),
+                |(lo, hi), p| (lo.min(p), hi.max(p)),
+            )
+        };
+        // The shadow of the (dilated) box on plane 0, projected back along the light.
+        let margin = SWEEP_MARGIN_VOXELS * 2.0 * self.step.min(self.extent.min_element());
+        let (s_lo, s_hi) = bounds(&mut box_corners(self.extent, margin).into_iter().map(|c| {
+            let v = self.view_from_world.transform_point3(c);
+            to_plane0(Vec3::new(v.x, v.y, v.z.max(z0)))
+        }));
+        // The light that reaches the rect on the first and the last plane (the rect's
+        // back-projection sweeps linearly in between).
+        let r = self.rect;
+        let mut needed = Vec::new();
+        for z in [z0, z_last] {
+            for (x, y) in [(r.x0, r.y0), (r.x1, r.y0), (r.x0, r.y1), (r.x1, r.y1)] {
+                needed.push(to_plane0(self.point_at(glam::Vec2::new(x as f32, y as f32), z)));
+            }
+        }
+        let (n_lo, n_hi) = bounds(&mut needed.into_iter());
+        let lo = s_lo.max(n_lo);
+        let hi = s_hi.min(n_hi).max(lo);
+        let mut stride = 1.0 / beams_per_texel;
+        let pixels = (self.width as f32 * self.height as f32).max(1.0);
+        let budget = MAX_BEAMS_PER_PIXEL * pixels * beams_per_texel * beams_per_texel;
+        let area = ((hi - lo).x + 2.0) * ((hi - lo).y + 2.0);
+        if area / (stride * stride) > budget {
+            stride = (area / budget).sqrt();
+        }
+        let x0 = (lo.x / stride).floor() * stride;
+        let y0 = (lo.y / stride).floor() * stride;
+        BeamGrid {
+            x0,
+            y0,
+            stride,
+            width: (((hi.x - x0) / stride).ceil() as u32).max(1),
+            height: (((hi.y - y0) / stride).ceil() as u32).max(1),
+        }
     }
 
     /// Volume texture coordinates of a view-space point.
@@ -131,6 +286,18 @@ impl ViewSetup {
         let eye = self.world_from_view.w_axis.truncate();
         Vec4::new(n_view.x, n_view.y, n_view.z, n_world.dot(eye) - offset * self.radius)
     }
+}
+
+/// The corners of the volume's box (world space, centred), grown by `margin` on each side.
+fn box_corners(extent: Vec3, margin: f32) -> [Vec3; 8] {
+    let half = extent * 0.5 + Vec3::splat(margin);
+    std::array::from_fn(|i| {
+        Vec3::new(
+            if i & 1 == 0 { -half.x } else { half.x },
+            if i & 2 == 0 { -half.y } else { half.y },
+            if i & 4 == 0 { -half.z } else { half.z },
+        )
+    })
 }
 
 /// Propagation direction of the light in view space (unit length, z > 0).

@@ -5,6 +5,7 @@
 mod environment;
 mod features;
 mod geometry;
+pub mod gradient;
 mod output;
 mod params;
 pub mod safeguards;
@@ -14,11 +15,12 @@ mod upload;
 
 pub use environment::{srgb_to_linear, EnvError, EnvMap};
 pub use features::{DebugView, Features};
-pub use geometry::{light_direction, ViewSetup, MAX_LIGHT_VALUE, MIN_LIGHT_DIR_Z, MIN_VIEW_DIR_Z};
+pub use geometry::{
+    light_direction, BeamGrid, PixelRect, ViewSetup, MAX_LIGHT_VALUE, MIN_LIGHT_DIR_Z, MIN_VIEW_DIR_Z,
+};
 pub use geometry::{MAX_PLANES, NEAR_PLANE};
 pub use output::{linear_to_srgb, OutputError, RenderedImage};
 pub use params::{Immediates, Params};
-pub use upload::ETA_TABLE_SIZE;
 
 use std::collections::HashMap;
 use std::sync::atomic::AtomicBool;
@@ -227,8 +229,12 @@ pub struct RenderStats {
     /// GPU time of the sweep and the final pass (timestamp queries), in milliseconds.
     pub gpu_ms: f64,
     pub ms_per_plane: f64,
-    /// Bytes of the ping-pong state buffers.
+    /// Bytes of the state buffers (light, beams or light grid, view rays).
     pub state_bytes: u64,
+    /// Cells of the light grid (beams or backward lookups), width × height.
+    pub light_grid: [u32; 2],
+    /// Pixels whose rays can meet the volume, width × height.
+    pub rect: [u32; 2],
     /// Precision the render actually used (lower than the scene's after an out-of-memory retry).
     pub precision: Precision,
     /// What was reduced to fit into device memory, one line each (empty normally).
@@ -243,7 +249,7 @@ pub struct RenderOutput {
 /// Renders prepared scenes; keeps parsed shaders and pipelines between renders.
 pub struct Renderer {
     ctx: Arc<Context>,
-    sources: HashMap<(Pass, Precision), ShaderSource>,
+    sources: HashMap<Pass, ShaderSource>,
     pipelines: HashMap<(Pass, Precision, Features, DebugView, u32), Arc<ComputePipeline>>,
     /// Scene textures of the last render, reused while the volume, transfer functions,
     /// sample distance and environment stay the same.
@@ -276,16 +282,15 @@ impl Renderer {
         debug: DebugView,
         safeguards_off: u32,
     ) -> Result<Arc<ComputePipeline>, RenderError> {
-        let debug = if pass == Pass::Finish { debug } else { DebugView::Image };
         let key = (pass, precision, features, debug, safeguards_off);
         if let Some(p) = self.pipelines.get(&key) {
             return Ok(p.clone());
         }
-        let source = match self.sources.entry((pass, precision)) {
+        let source = match self.sources.entry(pass) {
             std::collections::hash_map::Entry::Occupied(e) => e.into_mut(),
-            std::collections::hash_map::Entry::Vacant(e) => e.insert(pass.parse(precision)?),
+            std::collections::hash_map::Entry::Vacant(e) => e.insert(pass.parse()?),
         };
-        let mut constants = features.constants(debug);
+        let mut constants = features.constants(debug, precision);
         for c in constants.iter_mut().filter(|c| c.0 == "SAFEGUARDS_OFF") {
             c.1 = safeguards_off as f64;
         }

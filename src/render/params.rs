@@ -19,8 +19,18 @@ pub struct Params {
     pub texel: [f32; 4],
     pub background: [f32; 4],
     pub limits: [f32; 4],
-    /// x: largest concentration of the light (quality.max_concentration); yzw unused.
+    /// x: largest concentration of the light (quality.max_concentration); y: half-width of an
+    /// index interface for the Fresnel term (view units); zw unused.
     pub budget: [f32; 4],
+    /// Light grid: plane-0 pixel coordinates of cell (0, 0)'s corner, stride (pixels per
+    /// cell), cell area over pixel area on plane 0.
+    pub beam_origin: [f32; 4],
+    /// Light grid: width, height, tiles in x, workgroups.
+    pub beam_grid: [u32; 4],
+    /// Pixels whose rays can meet the volume: x0, y0, x1, y1 (half-open).
+    pub rect: [u32; 4],
+    /// View tiles in x, view workgroups, workgroups per dispatch row, light channels.
+    pub tiles: [u32; 4],
 }
 
 /// Mirrors `struct Immediates` (push constants).
@@ -40,7 +50,7 @@ mod tests {
     #[test]
     fn params_layout_matches_wgsl() {
         let src = format!(
-            "{}\n@compute @workgroup_size(1) fn main() {{ _ = P.budget; _ = I.seed; }}",
+            "{}\n@compute @workgroup_size(1) fn main() {{ _ = P.tiles; _ = I.seed; }}",
             crate::render::shaders::COMMON
         );
         let module = naga::front::wgsl::parse_str(&src).expect("common.wgsl parses");
@@ -59,7 +69,9 @@ mod tests {
         let naga::TypeInner::Struct { members, .. } = ty.inner else {
             panic!()
         };
-        let expected = [0, 64, 128, 192, 208, 224, 240, 256, 272, 288, 304, 320, 336, 352];
+        let expected = [
+            0, 64, 128, 192, 208, 224, 240, 256, 272, 288, 304, 320, 336, 352, 368, 384, 400, 416,
+        ];
         let offsets: Vec<u32> = members.iter().map(|m| m.offset).collect();
         assert_eq!(offsets, expected);
         assert_eq!(std::mem::offset_of!(Params, limits), 336);

@@ -1,5 +1,9 @@
-//! The sweep itself: ping-pong state buffers, the per-plane dispatches and read-back
-//! (Algorithm 1).
+//! The sweep itself: state buffers, the per-plane dispatches and read-back (Algorithm 1).
+//!
+//! One dispatch per plane k moves the light from plane k-1 to plane k (beams or backward
+//! lookups, on the light grid) and the view rays one plane behind, from k-2 to k-1, so both
+//! ends of a view segment have their light. Light lives in a ring of three planes; view rays
+//! are updated in place.
 
 use std::io::IsTerminal;
 use std::sync::Arc;
@@ -7,18 +11,16 @@ use std::sync::Arc;
 use ash::vk;
 use glam::Mat4;
 
-use crate::gpu::{
-    Buffer, ComputePipeline, Context, DescriptorSet, Format, GpuError, Image, ImageDesc, Recorder, Resource, Timestamps,
-};
+use crate::gpu::{Buffer, ComputePipeline, Context, DescriptorSet, GpuError, Recorder, Resource, Timestamps};
 
-use super::geometry::{light_direction, ViewSetup, MAX_LIGHT_VALUE, MIN_LIGHT_DIR_Z, MIN_VIEW_DIR_Z};
-use super::shaders::slot;
-use super::upload::{CachedTextures, SceneTextures, TexturesKey, ETA_TABLE_SIZE};
+use super::geometry::{light_direction, BeamGrid, ViewSetup, MAX_LIGHT_VALUE, MIN_LIGHT_DIR_Z, MIN_VIEW_DIR_Z};
+use super::shaders::{slot, Pass};
+use super::upload::{CachedTextures, SceneTextures, TexturesKey};
 use super::{
     background, DebugView, Features, Immediates, Params, PreparedScene, RenderError, RenderOutput, RenderRequest,
     RenderStats, RenderedImage,
 };
-use crate::scene::Precision;
+use crate::scene::{LightTransport, Precision};
 
 /// Planes recorded per submission at most: keeps each submission short (progress,
 /// responsiveness, watchdogs) while the per-submission overhead stays negligible.
@@ -30,39 +32,60 @@ const TEXELS_PER_SUBMIT: u64 = 1 << 24;
 /// Pixel-planes per submission of a cancellable render (between 1 and 8 planes): a view
 /// change stops it within about one plane of a 1024×768 image.
 const PIXEL_PLANES_PER_SUBMIT_CANCELLABLE: u32 = 1 << 20;
-const WORKGROUP: u32 = 8;
-
-/// The six state buffers of Algorithm 1, in binding order, with their storage formats at
-/// `precision` (must match the storage formats of `shaders/common.wgsl` after
-/// [`super::shaders::Pass::source`]). Buffers the scene does not need get a 1×1 placeholder.
-fn state_formats(precision: Precision) -> [(&'static str, Format); 6] {
-    let colour = match precision {
-        Precision::F16 => Format::R16G16B16A16_SFLOAT,
-        Precision::F32 => Format::R32G32B32A32_SFLOAT,
-    };
-    [
-        ("light", colour),
-        ("light direction", Format::R32G32B32A32_SFLOAT),
-        ("view position", Format::R32G32B32A32_SFLOAT),
-        ("view direction", Format::R32G32B32A32_SFLOAT),
-        ("colour+opacity", colour),
-        ("medium", colour),
-    ]
-}
-
-fn needed(features: &Features, index: usize) -> bool {
-    match index {
-        1 | 2 => features.refraction,
-        5 => features.medium,
-        _ => true,
-    }
-}
+/// Largest workgroup count along one dispatch axis that every Vulkan device accepts.
+const MAX_GROUPS_PER_ROW: u32 = 65535;
+/// Planes of light kept at once (the ring of `sweep.wgsl`).
+const LIGHT_RING: u64 = 3;
+/// Half-width of an index interface for the Fresnel term, in voxels: the gradient volume's
+/// central differences spread a step over two voxels, trilinear sampling over one more.
+const INTERFACE_HALF_WIDTH_VOXELS: f32 = 1.5;
 
 fn cols(m: Mat4) -> [[f32; 4]; 4] {
     m.to_cols_array_2d()
 }
 
-fn make_params(prepared: &PreparedScene, view: &ViewSetup, req: &RenderRequest, env_levels: u32) -> Params {
+fn tiles(n: u32) -> u32 {
+    n.div_ceil(Pass::TILE)
+}
+
+/// Light channels per deposited pixel: rgb when the medium colours the light (else one grey
+/// value), plus a direction when highlights or the direction view need it.
+fn light_channels(features: &Features, debug: DebugView) -> u32 {
+    let colour = if features.medium { 3 } else { 1 };
+    let direction = (features.specular && features.refraction) || debug == DebugView::LightDirection;
+    colour + if direction { 3 } else { 0 }
+}
+
+struct Layout {
+    grid: BeamGrid,
+    beam_groups: u32,
+    view_tiles_x: u32,
+    view_groups: u32,
+    groups_per_row: u32,
+    rows: u32,
+    channels: u32,
+}
+
+impl Layout {
+    fn new(view: &ViewSetup, grid: BeamGrid, channels: u32) -> Layout {
+        let beam_groups = tiles(grid.width) * tiles(grid.height);
+        let view_tiles_x = tiles(view.rect.width());
+        let view_groups = view_tiles_x * tiles(view.rect.height());
+        let total = (beam_groups + view_groups).max(1);
+        let groups_per_row = total.min(MAX_GROUPS_PER_ROW);
+        Layout {
+            grid,
+            beam_groups,
+            view_tiles_x,
+            view_groups,
+            groups_per_row,
+            rows: total.div_ceil(groups_per_row),
+            channels,
+        }
+    }
+}
+
+fn make_params(prepared: &PreparedScene, view: &ViewSetup, layout: &Layout, env_levels: u32) -> Params {
     let scene = &prepared.scene;
     let vol = &prepared.volume;
     let ld = light_direction(&scene.light);
@@ -79,6 +102,9 @@ fn make_params(prepared: &PreparedScene, view: &ViewSetup, req: &RenderRequest, 
         crate::scene::Environment::Color { .. } => 1.0,
     };
     let rotation = Mat4::from_mat3(glam::Mat3::from_mat4(view.world_from_view));
+    let min_spacing = vol.spacing.iter().copied().fold(f32::INFINITY, f32::min);
+    let g = &layout.grid;
+    let r = view.rect;
     Params {
         volume_from_view: cols(view.volume_from_view()),
         gradient_to_view: cols(view.gradient_to_view(vol.spacing)),
@@ -91,7 +117,7 @@ fn make_params(prepared: &PreparedScene, view: &ViewSetup, req: &RenderRequest, 
             view.planes as f32,
             scene.quality.sample_distance,
         ],
-        light_dir: [ld.x, ld.y, ld.z, l.softness * view.step],
+        light_dir: [ld.x, ld.y, ld.z, l.softness],
         light_color: [
             l.color[0] * l.intensity,
             l.color[1] * l.intensity,
@@ -105,20 +131,29 @@ fn make_params(prepared: &PreparedScene, view: &ViewSetup, req: &RenderRequest, 
             env_intensity,
         ],
         size: [
-            req.width as f32,
-            req.height as f32,
-            1.0 / req.width as f32,
-            1.0 / req.height as f32,
+            view.width as f32,
+            view.height as f32,
+            1.0 / view.width as f32,
+            1.0 / view.height as f32,
         ],
         texel: [
             1.0 / vol.dims[0] as f32,
             1.0 / vol.dims[1] as f32,
             1.0 / vol.dims[2] as f32,
-            ETA_TABLE_SIZE as f32,
+            super::gradient::ambient_eta(&prepared.tf.eta),
         ],
         background: background(&scene.environment),
         limits: [MIN_LIGHT_DIR_Z, MIN_VIEW_DIR_Z, MAX_LIGHT_VALUE, env_levels as f32],
-        budget: [scene.quality.max_concentration, 0.0, 0.0, 0.0],
+        budget: [
+            scene.quality.max_concentration(),
+            INTERFACE_HALF_WIDTH_VOXELS * min_spacing,
+            0.0,
+            0.0,
+        ],
+        beam_origin: [g.x0, g.y0, g.stride, g.stride * g.stride],
+        beam_grid: [g.width, g.height, tiles(g.width), layout.beam_groups],
+        rect: [r.x0, r.y0, r.x1, r.y1],
+        tiles: [layout.view_tiles_x, layout.view_groups, layout.groups_per_row, layout.channels],
     }
 }
 
@@ -131,6 +166,69 @@ fn progress_bar(show: bool, planes: u64) -> Option<indicatif::ProgressBar> {
         bar.set_style(style);
     }
     Some(bar)
+}
+
+/// The state buffers of one render; those the scene does not need are 16-byte placeholders.
+struct State {
+    buffers: Vec<(u32, Buffer)>,
+    bytes: u64,
+}
+
+impl State {
+    fn new(
+        ctx: &Arc<Context>,
+        view: &ViewSetup,
+        layout: &Layout,
+        features: &Features,
+        precision: Precision,
+    ) -> Result<State, GpuError> {
+        let pixels = view.width as u64 * view.height as u64;
+        let cells = layout.grid.count();
+        let rgba = match precision {
+            Precision::F16 => 8,
+            Precision::F32 => 16,
+        };
+        let beams = features.transport == LightTransport::Beams;
+        let refraction = features.refraction;
+        let back_dir = !beams && (refraction || features.intensity_correction);
+        let sizes: [(u32, &str, u64, bool); 13] = [
+            (slot::VIEW_LIGHT, "view light", pixels * rgba, true),
+            (slot::VIEW_RAY, "view rays", pixels * 16, refraction),
+            (slot::VIEW_AUX, "view aux", pixels * 16, true),
+            (slot::VIEW_COLOR, "view colour", pixels * rgba, true),
+            (slot::VIEW_MEDIUM, "view medium", pixels * rgba, features.medium),
+            (slot::BEAM_POS, "beam positions", 2 * cells * 16, beams && refraction),
+            (slot::BEAM_AUX, "beam aux", 2 * cells * 16, beams),
+            (slot::BEAM_POWER, "beam power", 2 * cells * rgba, beams),
+            (
+                slot::LIGHT_ACC,
+                "deposited light",
+                LIGHT_RING * pixels * layout.channels as u64 * 4,
+                beams,
+            ),
+            (slot::BACK_LIGHT, "light grid", LIGHT_RING * cells * rgba, !beams),
+            (slot::BACK_DIR, "light grid directions", LIGHT_RING * cells * 16, back_dir),
+            (slot::IMAGE_OUT, "image", pixels * 16, true),
+            (slot::PARAMS, "", 0, false), // placeholder entry, replaced by the params buffer
+        ];
+        let mut buffers = Vec::new();
+        let mut bytes = 0;
+        for (index, label, size, needed) in sizes {
+            if index == slot::PARAMS {
+                continue;
+            }
+            let size = if needed { size.max(16) } else { 16 };
+            if needed && index != slot::IMAGE_OUT {
+                bytes += size;
+            }
+            buffers.push((index, Buffer::new_device(ctx, label, size)?));
+        }
+        Ok(State { buffers, bytes })
+    }
+
+    fn get(&self, index: u32) -> Option<&Buffer> {
+        self.buffers.iter().find(|(i, _)| *i == index).map(|(_, b)| b)
+    }
 }
 
 pub(super) fn run(
@@ -150,32 +248,35 @@ pub(super) fn run(
         )));
     }
     let vol = &prepared.volume;
-    let view = ViewSetup::new(&prepared.scene, vol.dims, vol.spacing, w, h).map_err(RenderError::Setup)?;
-    let planes_run = if req.debug_view == DebugView::Image {
+    let scene = &prepared.scene;
+    let view = ViewSetup::new(scene, vol.dims, vol.spacing, w, h).map_err(RenderError::Setup)?;
+    let planes_run = if req.debug_view == DebugView::Image || req.debug_view == DebugView::Medium {
         view.planes
     } else {
         1 + (req.debug_depth.clamp(0.0, 1.0) * (view.planes - 1) as f32).round() as u32
     };
+    let grid = view.beam_grid(light_direction(&scene.light), scene.quality.beams_per_texel);
+    let layout = Layout::new(&view, grid, light_channels(&features, req.debug_view));
 
     let mut rec = Recorder::new(ctx, "render: upload and init")?;
     let window = prepared.window();
-    let eta = match (&prepared.eta_volume, features.eta_volume) {
-        (Some(v), true) => Some((v.as_ref(), v.value_range)),
-        _ => None,
-    };
     // Scene textures are kept between renders while what they hold is unchanged (an
     // interactive view changes mostly the camera and light).
-    let key = TexturesKey::new(prepared, features.eta_volume);
+    let key = TexturesKey::new(prepared, &features);
     if !cache.as_ref().is_some_and(|c| c.matches(&key)) {
         *cache = None; // free the old textures before allocating new ones
+        let eta_source = match (&prepared.eta_volume, features.eta_volume) {
+            (Some(v), true) => Some((v.as_ref(), v.value_range)),
+            _ => None,
+        };
         let textures = SceneTextures::upload(
             ctx,
             &mut rec,
             vol,
             window,
-            eta,
+            features.refraction.then_some((eta_source, features.gradient)),
             &prepared.tf,
-            prepared.scene.quality.sample_distance,
+            scene.quality.sample_distance,
             prepared.env.as_ref(),
         )?;
         *cache = Some(CachedTextures::new(key, textures));
@@ -184,85 +285,70 @@ pub(super) fn run(
         .as_mut()
         .ok_or_else(|| RenderError::Setup("internal: scene textures missing".into()))?;
 
-    let mut uniform = Buffer::new_upload(
+    let mut params = Buffer::new_upload(
         ctx,
         "params",
         std::mem::size_of::<Params>() as u64,
         vk::BufferUsageFlags::STORAGE_BUFFER,
     )?;
-    uniform.write(bytemuck::bytes_of(&make_params(
+    params.write(bytemuck::bytes_of(&make_params(
         prepared,
         &view,
-        req,
+        &layout,
         cached.textures.env_levels,
     )))?;
+    let state = State::new(ctx, &view, &layout, &features, precision)?;
+    let acc = state
+        .get(slot::LIGHT_ACC)
+        .ok_or_else(|| RenderError::Setup("internal: light buffer missing".into()))?;
+    rec.fill(acc, 0);
 
-    // Ping-pong state: state[side][k]; placeholders for buffers the scene does not need.
-    let mut state_bytes = 0u64;
-    let mut state: [Vec<Image>; 2] = [Vec::new(), Vec::new()];
-    for (side, images) in state.iter_mut().enumerate() {
-        for (k, (name, format)) in state_formats(precision).iter().enumerate() {
-            let (iw, ih) = if needed(&features, k) { (w, h) } else { (1, 1) };
-            let label = format!("{name} {}", ["A", "B"][side]);
-            let img = Image::new(ctx, ImageDesc::storage_2d(&label, *format, iw, ih))?;
-            let texel_bytes = if *format == Format::R32G32B32A32_SFLOAT { 16 } else { 8 };
-            state_bytes += (iw * ih) as u64 * texel_bytes;
-            images.push(img);
-        }
-    }
-    let output = Image::new(ctx, ImageDesc::storage_2d("output", Format::R32G32B32A32_SFLOAT, w, h))?;
-    let mut all: Vec<&Image> = state.iter().flatten().collect();
-    all.push(&output);
-    rec.init_layout(&all);
-
-    // sets[p][r]: pipeline p, reading side r and writing side 1 - r.
-    let mut sets: Vec<[DescriptorSet; 2]> = Vec::new();
+    let mut sets = Vec::new();
     for p in pipelines {
-        let make = |read: usize| -> Result<DescriptorSet, GpuError> {
-            let set = DescriptorSet::new(ctx, p, &format!("{} reads {}", p.label, ["A", "B"][read]))?;
-            let t = &cached.textures;
-            let mut writes = vec![
-                (slot::PARAMS, Resource::Uniform(&uniform)),
-                (slot::VOLUME, Resource::Image(&t.volume)),
-                (slot::LINEAR_CLAMP, Resource::Sampler(&t.linear_clamp)),
-                (slot::VOLUME_SAMPLER, Resource::Sampler(&t.volume_sampler)),
-                (
-                    slot::ETA_VOLUME,
-                    Resource::Image(t.eta_volume.as_ref().unwrap_or(&t.volume)),
-                ),
-                (slot::PARTICLE_TABLE, Resource::Image(&t.particle_table)),
-                (slot::MEDIUM_TABLE, Resource::Image(&t.medium_table)),
-                (slot::ETA_TABLE, Resource::Image(&t.eta_table)),
-                (slot::ENV, Resource::Image(&t.env)),
-                (slot::ENV_SAMPLER, Resource::Sampler(&t.env_sampler)),
-                (slot::IMAGE_OUT, Resource::Image(&output)),
-            ];
-            for (k, (input, output)) in state[read].iter().zip(&state[1 - read]).enumerate() {
-                writes.push((slot::STATE_IN + k as u32, Resource::Image(input)));
-                writes.push((slot::STATE_OUT + k as u32, Resource::Image(output)));
-            }
-            set.write(&writes)?;
-            Ok(set)
-        };
-        sets.push([make(0)?, make(1)?]);
+        let set = DescriptorSet::new(ctx, p, &p.label)?;
+        let t = &cached.textures;
+        let mut writes = vec![
+            (slot::PARAMS, Resource::Buffer(&params)),
+            (slot::VOLUME, Resource::Image(&t.volume)),
+            (slot::LINEAR_CLAMP, Resource::Sampler(&t.linear_clamp)),
+            (slot::VOLUME_SAMPLER, Resource::Sampler(&t.volume_sampler)),
+            (slot::GRADIENT, Resource::Image(&t.gradient)),
+            (slot::PARTICLE_TABLE, Resource::Image(&t.particle_table)),
+            (slot::MEDIUM_TABLE, Resource::Image(&t.medium_table)),
+            (slot::ENV, Resource::Image(&t.env)),
+            (slot::ENV_SAMPLER, Resource::Sampler(&t.env_sampler)),
+        ];
+        for (index, buffer) in &state.buffers {
+            writes.push((*index, Resource::Buffer(buffer)));
+        }
+        set.write(&writes)?;
+        sets.push(set);
     }
-    let groups = [w.div_ceil(WORKGROUP), h.div_ceil(WORKGROUP), 1];
-    let planes_per_submit = (TEXELS_PER_SUBMIT / (w as u64 * h as u64)).clamp(1, PLANES_PER_SUBMIT as u64) as u32;
+    let sweep_groups = [layout.groups_per_row, layout.rows, 1];
+    let finish_groups = [tiles(w), tiles(h), 1];
+    let texels_per_plane = (layout.grid.count() + view.rect.width() as u64 * view.rect.height() as u64).max(1);
+    let planes_per_submit = (TEXELS_PER_SUBMIT / texels_per_plane).clamp(1, PLANES_PER_SUBMIT as u64) as u32;
     let push = |plane: u32| Immediates {
         plane_index: plane,
         seed: 0x9e37_79b9,
         pad: [0; 2],
     };
 
-    // Init writes side A (set reading B); plane i reads side (i-1) % 2.
-    rec.dispatch(&pipelines[0], &sets[0][1], bytemuck::bytes_of(&push(0)), groups);
+    rec.dispatch(&pipelines[0], &sets[0], bytemuck::bytes_of(&push(0)), sweep_groups);
     rec.compute_to_compute();
-    let bar = progress_bar(req.progress, planes_run as u64);
+    // Dispatch k moves the light to plane k and the view rays to plane k-1: the image needs
+    // one dispatch more than there are planes, the light diagnostics stop at their plane.
+    let dispatches = if req.debug_view == DebugView::Image || req.debug_view == DebugView::Medium {
+        planes_run
+    } else {
+        planes_run - 1
+    };
+    let bar = progress_bar(req.progress, dispatches as u64);
     let mut gpu_ms = 0.0;
     let mut plane = 1u32;
     let mut rec = Some(rec);
     let chunk = if req.cancel.is_some() {
-        (PIXEL_PLANES_PER_SUBMIT_CANCELLABLE / (w * h).max(1)).clamp(1, 8)
+        (PIXEL_PLANES_PER_SUBMIT_CANCELLABLE as u64 / texels_per_plane).clamp(1, 8) as u32
     } else {
         planes_per_submit
     };
@@ -281,25 +367,27 @@ pub(super) fn run(
         let ts = Timestamps::new(ctx, 2)?;
         r.reset_timestamps(&ts);
         r.timestamp(&ts, 0);
-        let end = (plane + chunk).min(planes_run);
+        let end = (plane + chunk).min(dispatches + 1);
         while plane < end {
-            let read = ((plane - 1) % 2) as usize;
-            r.dispatch(&pipelines[1], &sets[1][read], bytemuck::bytes_of(&push(plane)), groups);
+            r.dispatch(&pipelines[1], &sets[1], bytemuck::bytes_of(&push(plane)), sweep_groups);
             r.compute_to_compute();
             plane += 1;
         }
-        let last = plane >= planes_run;
+        let last = plane > dispatches;
         let readback = if last {
-            let read = ((planes_run - 1) % 2) as usize;
             r.dispatch(
                 &pipelines[2],
-                &sets[2][read],
-                bytemuck::bytes_of(&push(planes_run)),
-                groups,
+                &sets[2],
+                bytemuck::bytes_of(&push(planes_run - 1)),
+                finish_groups,
             );
             r.compute_to_transfer();
-            let buf = Buffer::new_readback(ctx, "output readback", (w * h) as u64 * 16)?;
-            r.copy_to_buffer(&output, &buf);
+            let image = state
+                .get(slot::IMAGE_OUT)
+                .ok_or_else(|| RenderError::Setup("internal: image buffer missing".into()))?;
+            let bytes = w as u64 * h as u64 * 16;
+            let buf = Buffer::new_readback(ctx, "output readback", bytes)?;
+            r.copy_buffer(image, &buf, bytes);
             Some(buf)
         } else {
             None
@@ -309,7 +397,7 @@ pub(super) fn run(
         cached.uploaded();
         gpu_ms += ts.read_ms()?.iter().sum::<f64>();
         if let Some(b) = &bar {
-            b.set_position(plane as u64);
+            b.set_position((plane - 1) as u64);
         }
         if let Some(buf) = readback {
             if let Some(b) = bar {
@@ -329,7 +417,9 @@ pub(super) fn run(
                     planes_run,
                     gpu_ms,
                     ms_per_plane: gpu_ms / planes_run.max(1) as f64,
-                    state_bytes,
+                    state_bytes: state.bytes,
+                    light_grid: [layout.grid.width, layout.grid.height],
+                    rect: [view.rect.width(), view.rect.height()],
                     precision,
                     reductions: Vec::new(),
                 },

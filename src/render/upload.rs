@@ -5,23 +5,22 @@ use std::sync::Arc;
 use half::f16;
 
 use crate::gpu::{Buffer, Context, Format, GpuError, Image, ImageDesc, Recorder, Sampler, SamplerDesc};
+use crate::scene::Gradient;
 use crate::transfer::{preintegrate, TransferFunctions, TABLE_SIZE};
 use crate::volume::Volume;
 
 use super::environment::EnvMap;
-
-/// Entries of the η lookup table (the shaders interpolate linearly between them).
-pub const ETA_TABLE_SIZE: usize = 1024;
+use super::gradient::gradient_volume;
 
 type Levels = Vec<(u64, [u32; 3])>;
 
 /// Everything sampled by the passes, uploaded once per render.
 pub struct SceneTextures {
     pub volume: Image,
-    pub eta_volume: Option<Image>,
+    /// η and ∇η per voxel (`gradient.rs`); 1×1×1 when nothing refracts.
+    pub gradient: Image,
     pub particle_table: Image,
     pub medium_table: Image,
-    pub eta_table: Image,
     pub env: Image,
     pub env_levels: u32,
     pub linear_clamp: Sampler,
@@ -63,14 +62,15 @@ fn volume_image(ctx: &Arc<Context>, label: &str, vol: &Volume) -> Result<Image, 
 }
 
 impl SceneTextures {
-    /// Creates the textures and records their upload into `rec`.
+    /// Creates the textures and records their upload into `rec`. `refraction`: the η source
+    /// (the η volume with its value range, or the volume itself) for the gradient volume.
     #[allow(clippy::too_many_arguments)]
     pub fn upload(
         ctx: &Arc<Context>,
         rec: &mut Recorder,
         volume: &Volume,
         window: [f32; 2],
-        eta_volume: Option<(&Volume, [f32; 2])>,
+        refraction: Option<(Option<(&Volume, [f32; 2])>, Gradient)>,
         tf: &TransferFunctions,
         sample_distance: f32,
         env: Option<&EnvMap>,
@@ -81,18 +81,27 @@ impl SceneTextures {
         let mut images: Vec<Image> = Vec::new();
 
         let vol_img = volume_image(ctx, "volume", volume)?;
-        let bytes: Vec<u8> = bytemuck::cast_slice(&volume.normalized_u16(window)).to_vec();
+        let samples = volume.normalized_u16(window);
+        let bytes: Vec<u8> = bytemuck::cast_slice(&samples).to_vec();
         uploads.push((images.len(), vec![(staging.push(&bytes), vol_img.desc.extent)]));
         images.push(vol_img);
 
-        let mut eta_index = None;
-        if let Some((ev, w)) = eta_volume {
-            let img = volume_image(ctx, "eta volume", ev)?;
-            let bytes: Vec<u8> = bytemuck::cast_slice(&ev.normalized_u16(w)).to_vec();
-            uploads.push((images.len(), vec![(staging.push(&bytes), img.desc.extent)]));
-            eta_index = Some(images.len());
-            images.push(img);
-        }
+        let (extent, texels) = match refraction {
+            Some((eta_source, scheme)) => {
+                let (dims, g) = match eta_source {
+                    Some((ev, w)) => (ev.dims, gradient_volume(&ev.normalized_u16(w), ev.dims, &tf.eta, scheme)),
+                    None => (volume.dims, gradient_volume(&samples, volume.dims, &tf.eta, scheme)),
+                };
+                ([dims[0] as u32, dims[1] as u32, dims[2] as u32], g)
+            }
+            None => ([1, 1, 1], vec![[half::f16::ZERO; 4]]),
+        };
+        let img = Image::new(
+            ctx,
+            ImageDesc::sampled("gradient volume", Format::R16G16B16A16_SFLOAT, extent, true, 1),
+        )?;
+        uploads.push((images.len(), vec![(staging.push(bytemuck::cast_slice(&texels)), extent)]));
+        images.push(img);
 
         let tables = preintegrate(tf, sample_distance);
         let n = TABLE_SIZE as u32;
@@ -105,20 +114,6 @@ impl SceneTextures {
             uploads.push((images.len(), vec![(offset, [n, n, 1])]));
             images.push(img);
         }
-
-        let eta: Vec<f32> = (0..ETA_TABLE_SIZE)
-            .map(|i| tf.eta.eval(i as f32 / (ETA_TABLE_SIZE - 1) as f32))
-            .collect();
-        let size = ETA_TABLE_SIZE as u32;
-        let img = Image::new(
-            ctx,
-            ImageDesc::sampled("eta table", Format::R32_SFLOAT, [size, 1, 1], false, 1),
-        )?;
-        uploads.push((
-            images.len(),
-            vec![(staging.push(bytemuck::cast_slice(&eta)), [size, 1, 1])],
-        ));
-        images.push(img);
 
         let fallback;
         let env_levels: &[(u32, u32, Vec<[f32; 4]>)] = match env {
@@ -190,17 +185,15 @@ impl SceneTextures {
 
         let mut it = images.into_iter();
         let volume = it.next().ok_or_else(missing)?;
-        let eta_volume = if eta_index.is_some() { it.next() } else { None };
+        let gradient = it.next().ok_or_else(missing)?;
         let particle_table = it.next().ok_or_else(missing)?;
         let medium_table = it.next().ok_or_else(missing)?;
-        let eta_table = it.next().ok_or_else(missing)?;
         let env = it.next().ok_or_else(missing)?;
         Ok(SceneTextures {
             volume,
-            eta_volume,
+            gradient,
             particle_table,
             medium_table,
-            eta_table,
             env,
             env_levels: env_levels.len() as u32,
             linear_clamp,
@@ -221,6 +214,8 @@ impl SceneTextures {
 pub struct TexturesKey {
     volume: Arc<Volume>,
     eta_volume: Option<Arc<Volume>>,
+    /// The gradient volume exists (refraction) and how it was reconstructed.
+    gradient: Option<Gradient>,
     window: [f32; 2],
     tf: TransferFunctions,
     sample_distance: f32,
@@ -228,10 +223,11 @@ pub struct TexturesKey {
 }
 
 impl TexturesKey {
-    pub fn new(prepared: &super::PreparedScene, uses_eta_volume: bool) -> Self {
+    pub fn new(prepared: &super::PreparedScene, features: &super::Features) -> Self {
         TexturesKey {
             volume: prepared.volume.clone(),
-            eta_volume: prepared.eta_volume.clone().filter(|_| uses_eta_volume),
+            eta_volume: prepared.eta_volume.clone().filter(|_| features.eta_volume),
+            gradient: features.refraction.then_some(features.gradient),
             window: prepared.window(),
             tf: prepared.tf.clone(),
             sample_distance: prepared.scene.quality.sample_distance,
@@ -247,6 +243,7 @@ impl TexturesKey {
         };
         Arc::ptr_eq(&self.volume, &other.volume)
             && eta_same
+            && self.gradient == other.gradient
             && self.window == other.window
             && self.tf == other.tf
             && self.sample_distance == other.sample_distance

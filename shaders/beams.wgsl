@@ -1,0 +1,422 @@
+// Forward light transport: one beam per cell of the light grid carries position, direction
+// v = η·d and power from plane to plane and deposits its power onto each plane over its
+// footprint. Rays may cross (a focus is passed and the light spreads again), light is never
+// resampled, and power is conserved: every beam deposits all it carries.
+//
+// Integration: leapfrog in depth. A beam stores v half a step ahead; it drifts straight to
+// the next plane (`drift`, no volume fetch), so a neighbour's new position follows from its
+// stored state alone, then gets the kick v += ℓ ∇η at its new position (Eq. 8 with the
+// segment's path length ℓ), with |v| set to η along ∇η (Snell's law at any step size).
+
+// Fixed-point scale of the deposited light: 2^17 per unit of relative irradiance, so the
+// unsaturated range [0, 2^31) holds 16384 (MAX_LIGHT_VALUE) with 7.6e-6 resolution.
+const ACC_SCALE: f32 = 131072.0;
+// Accumulated values at or above this count as saturated (SG_SATURATION): one add is at most
+// ACC_SCALE (a beam carries one plane-0 cell of power), so 2^31 of headroom cannot wrap.
+const ACC_SATURATED: u32 = 2147483648u;
+// Largest footprint edge of one beam, in pixels (SG_FOOTPRINT): a beam spread over more has
+// less than 1/1024 of its power per pixel; beyond it the footprint is clamped.
+const MAX_FOOTPRINT_PIXELS: f32 = 32.0;
+
+// Beams deposit their direction of travel too, for highlights and the direction view.
+fn deposits_direction() -> bool {
+    return (SPECULAR && REFRACTION) || DEBUG_VIEW == 2u;
+}
+
+fn beam_count() -> u32 {
+    return P.beam_grid.x * P.beam_grid.y;
+}
+
+// Plane-0 pixel coordinates (edges: pixel u spans [u, u + 1)) of the centre of beam (i, j).
+fn beam_cell_centre(ij: vec2<u32>) -> vec2<f32> {
+    return P.beam_origin.xy + (vec2<f32>(ij) + vec2<f32>(0.5)) * P.beam_origin.z;
+}
+
+struct Beam {
+    pos: vec3<f32>,     // on the plane
+    v: vec3<f32>,       // η·direction, half a step ahead
+    value: f32,         // data value at pos (front of the next segment)
+    shadow: f32,        // depth where the light it lost was lost (loss-weighted), for soft light
+    power: vec3<f32>,   // relative to one plane-0 cell of unobstructed light
+}
+
+fn load_beam(index: u32, half: u32, z: f32) -> Beam {
+    let n = beam_count();
+    let aux = beam_aux[half * n + index];
+    let ij = vec2<u32>(index % P.beam_grid.x, index / P.beam_grid.x);
+    var b: Beam;
+    if (REFRACTION) {
+        let a = beam_pos[half * n + index];
+        b.pos = vec3<f32>(a.xy, z);
+        b.v = vec3<f32>(a.zw, aux.x);
+    } else {
+        let p0 = unproject(beam_cell_centre(ij) - vec2<f32>(0.5), P.plane.x);
+        b.pos = unrefracted(p0, z);
+        b.v = P.light_dir.xyz * P.texel.w;
+    }
+    b.value = aux.y;
+    b.shadow = aux.z;
+    b.power = load_beam_power(half * n + index).rgb;
+    return b;
+}
+
+fn store_beam(index: u32, half: u32, b: Beam) {
+    let n = beam_count();
+    if (REFRACTION) {
+        beam_pos[half * n + index] = vec4<f32>(b.pos.xy, b.v.xy);
+    }
+    beam_aux[half * n + index] = vec4<f32>(b.v.z, b.value, b.shadow, 0.0);
+    store_beam_power(half * n + index, vec4<f32>(b.power, 0.0));
+}
+
+// Position on the plane at depth z of a beam last seen at `pos` with direction `v`: the
+// straight segment (drift) of the leapfrog step.
+fn drift(pos: vec3<f32>, v: vec3<f32>, z: f32) -> vec3<f32> {
+    let d = light_direction(v);
+    return pos + d * ((z - pos.z) / d.z);
+}
+
+// Adds `amount` (relative irradiance × pixels) to light slot `slot` over the axis-aligned box
+// of edges `w` (pixels) centred at `c` (continuous pixel coordinates, pixel u spans
+// [u, u + 1)): each pixel gets the fraction of the box it overlaps, so a box of zero size
+// falls in one pixel (exact binning) and a beam's power is deposited exactly once. Pixels
+// outside the rect of the image that meets the volume are never read and get nothing.
+fn deposit(slot: u32, c: vec2<f32>, w_in: vec2<f32>, amount: vec3<f32>, direction: vec3<f32>, seed: u32) {
+    var w = max(w_in, vec2<f32>(1e-4));
+    if (guarded(SG_FOOTPRINT)) {
+        w = min(w, vec2<f32>(MAX_FOOTPRINT_PIXELS));
+    }
+    let lo = c - 0.5 * w;
+    let hi = c + 0.5 * w;
+    let r0 = vec2<f32>(f32(P.rect.x), f32(P.rect.y));
+    let r1 = vec2<f32>(f32(P.rect.z), f32(P.rect.w));
+    let a = max(floor(lo), r0);
+    let b = min(ceil(hi), r1);
+    if (a.x >= b.x || a.y >= b.y) {
+        return;
+    }
+    let channels = P.tiles.w;
+    let plane_size = u32(P.size.x) * u32(P.size.y) * channels;
+    let base = slot * plane_size;
+    var y = a.y;
+    loop {
+        if (y >= b.y) {
+            break;
+        }
+        let wy = (min(hi.y, y + 1.0) - max(lo.y, y)) / w.y;
+        var x = a.x;
+        loop {
+            if (x >= b.x) {
+                break;
+            }
+            let wx = (min(hi.x, x + 1.0) - max(lo.x, x)) / w.x;
+            let weight = wx * wy;
+            if (weight > 0.0) {
+                let texel = base + (u32(y) * u32(P.size.x) + u32(x)) * channels;
+                // Unbiased rounding: a deterministic dither per beam, pixel and channel.
+                let h = hash(seed ^ (u32(x) * 73856093u) ^ (u32(y) * 19349663u));
+                let dither = f32(h & 0xffffu) / 65536.0;
+                var n_colour = 1u;
+                if (MEDIUM) {
+                    n_colour = 3u;
+                }
+                for (var ch = 0u; ch < n_colour; ch++) {
+                    let q = u32(amount[ch] * weight * ACC_SCALE + dither);
+                    if (q > 0u) {
+                        let old = atomicAdd(&light_acc[texel + ch], q);
+                        if (old + q >= ACC_SATURATED && guarded(SG_SATURATION)) {
+                            atomicMin(&light_acc[texel + ch], ACC_SATURATED);
+                        }
+                    }
+                }
+                if (deposits_direction()) {
+                    // Power-weighted directions (two's complement) for the highlights.
+                    let s = amount[0] * weight * ACC_SCALE;
+                    for (var ch = 0u; ch < 3u; ch++) {
+                        let q = i32(round(direction[ch] * s));
+                        if (q != 0) {
+                            atomicAdd(&light_acc[texel + n_colour + ch], bitcast<u32>(q));
+                        }
+                    }
+                }
+            }
+            x += 1.0;
+        }
+        y += 1.0;
+    }
+}
+
+// The part of plane-0 cell power a beam deposits on plane z, per unit of its footprint: the
+// cell's area over a pixel's area on that plane (both in view units²). For the image the
+// light is fluence (what particles scatter: irradiance over the beam's cosine, relative to
+// the source's); the light debug view shows irradiance on the plane.
+fn deposit_scale(z: f32, d: vec3<f32>) -> f32 {
+    var s = P.beam_origin.w * pixel_area(P.plane.x) / pixel_area(z);
+    if (DEBUG_VIEW != 1u) {
+        s *= P.light_dir.z / max(d.z, P.limits.x);
+    }
+    return s;
+}
+
+// Deposits a beam on plane k with the footprint spanned by its neighbours' positions (half
+// the distance to each neighbour on either side, in plane-k pixels).
+fn deposit_beam(k: u32, b: Beam, du: vec3<f32>, dv: vec3<f32>, seed: u32) {
+    if (max(b.power.r, max(b.power.g, b.power.b)) <= 0.0) {
+        return;
+    }
+    let c = project(b.pos) + vec2<f32>(0.5);
+    // Footprint edges: the cell's extent along each image axis (its second moments kept).
+    let pu = project(b.pos + du) - project(b.pos);
+    let pv = project(b.pos + dv) - project(b.pos);
+    let w = vec2<f32>(length(vec2<f32>(pu.x, pv.x)), length(vec2<f32>(pu.y, pv.y)));
+    let d = light_direction(b.v);
+    deposit(k % 3u, c, w, b.power * deposit_scale(b.pos.z, d), d, seed);
+}
+
+// Beam (i, j) at plane 0: unobstructed light entering the sweep, deposited for the first
+// view step.
+fn beams_init(ij: vec2<u32>) {
+    if (ij.x >= P.beam_grid.x || ij.y >= P.beam_grid.y) {
+        return;
+    }
+    let index = ij.y * P.beam_grid.x + ij.x;
+    var b: Beam;
+    let z0 = P.plane.x;
+    b.pos = unproject(beam_cell_centre(ij) - vec2<f32>(0.5), z0);
+    b.value = sample_value(b.pos);
+    b.v = P.light_dir.xyz * P.texel.w;
+    if (REFRACTION) {
+        let ix = index_at(b.pos);
+        b.v = entering(P.light_dir.xyz, ix.eta);
+    }
+    b.shadow = z0;
+    b.power = vec3<f32>(1.0);
+    store_beam(index, 0u, b);
+    // The cell itself is the footprint on plane 0.
+    let s = P.beam_origin.z;
+    let du = unproject(vec2<f32>(s, 0.0), z0) - unproject(vec2<f32>(0.0), z0);
+    let dv = unproject(vec2<f32>(0.0, s), z0) - unproject(vec2<f32>(0.0), z0);
+    deposit_beam(0u, b, du, dv, hash(index ^ 0x5bd1e995u));
+}
+
+// Position of beam `index` (a neighbour) on plane z after the drift from its state on the
+// previous plane, or `fallback` if the index is outside the grid.
+fn neighbour_pos(ij: vec2<i32>, half: u32, z_prev: f32, z: f32) -> vec4<f32> {
+    if (ij.x < 0 || ij.y < 0 || ij.x >= i32(P.beam_grid.x) || ij.y >= i32(P.beam_grid.y)) {
+        return vec4<f32>(0.0);
+    }
+    let n = beam_count();
+    let index = u32(ij.y) * P.beam_grid.x + u32(ij.x);
+    let a = beam_pos[half * n + index];
+    let vz = beam_aux[half * n + index].x;
+    return vec4<f32>(drift(vec3<f32>(a.xy, z_prev), vec3<f32>(a.zw, vz), z), 1.0);
+}
+
+// Half the vector between a beam's neighbours on either side along one grid axis (central
+// difference), or the one-sided difference at the grid's edge.
+fn cell_axis(p: vec3<f32>, minus: vec4<f32>, plus: vec4<f32>) -> vec3<f32> {
+    if (minus.w > 0.0 && plus.w > 0.0) {
+        return 0.5 * (plus.xyz - minus.xyz);
+    }
+    if (plus.w > 0.0) {
+        return plus.xyz - p;
+    }
+    if (minus.w > 0.0) {
+        return p - minus.xyz;
+    }
+    return vec3<f32>(0.0);
+}
+
+// Soft light: power diffuses between neighbouring beams so that a shadow edge cast at depth
+// `shadow` is blurred like the penumbra of a cone source of half-angle atan(softness): a
+// uniform disc of radius D·softness at distance D, whose variance per axis grows by
+// softness²·D·ℓ/2 over a segment of length ℓ, whatever the plane distance.
+fn diffuse(b: Beam, nb: array<Beam, 4>, spacing: vec4<f32>, z: f32, l: f32) -> vec4<f32> {
+    let soft = P.light_dir.w;
+    var flux = vec3<f32>(0.0);
+    var shadow_sum = 0.0;
+    var deficit_sum = 0.0;
+    let own_deficit = max(1.0 - max(b.power.r, max(b.power.g, b.power.b)), 0.0);
+    for (var k = 0u; k < 4u; k++) {
+        let o = nb[k];
+        let od = max(1.0 - max(o.power.r, max(o.power.g, o.power.b)), 0.0);
+        // The blur grows from where the light was lost: the shadow depth of whichever of the
+        // two beams lost more.
+        var depth = b.shadow;
+        if (od > own_deficit) {
+            depth = o.shadow;
+        }
+        let dist = max(z - depth, 0.0);
+        let variance = soft * soft * dist * l * 0.5;
+        let s2 = max(spacing[k] * spacing[k], 1e-12);
+        // Explicit diffusion is stable for weights up to 1/4 per neighbour (four of them).
+        let w = min(variance / (2.0 * s2), 0.25);
+        flux += w * (o.power - b.power);
+        shadow_sum += od * o.shadow;
+        deficit_sum += od;
+    }
+    var shadow = b.shadow;
+    if (deficit_sum + own_deficit > 0.0) {
+        shadow = (shadow_sum + own_deficit * b.shadow) / (deficit_sum + own_deficit);
+    }
+    return vec4<f32>(flux, shadow);
+}
+
+// One beam from plane k-1 to plane k: drift, attenuation over the segment, soft light,
+// deposit on plane k, kick (Eq. 8 and Snell at the new position).
+fn beams_step(ij: vec2<u32>, k: u32) {
+    if (ij.x >= P.beam_grid.x || ij.y >= P.beam_grid.y) {
+        return;
+    }
+    let index = ij.y * P.beam_grid.x + ij.x;
+    let read = (k - 1u) % 2u;
+    let z_prev = plane_z(k - 1u);
+    let z = plane_z(k);
+    let ds = P.plane.y;
+    var b = load_beam(index, read, z_prev);
+    let x0 = b.pos;
+    b.pos = drift(b.pos, b.v, z);
+    let d = light_direction(b.v);
+    let l = length(b.pos - x0);
+    let value = sample_value(b.pos);
+    let lost_before = b.power;
+    if (max(b.power.r, max(b.power.g, b.power.b)) > 0.0) {
+        b.power *= segment_transmittance(b.value, value, l / ds, is_clipped(0.5 * (x0 + b.pos)));
+    }
+    // Shadow depth: where, weighted by the power lost, the light was lost.
+    let loss = max(lost_before.r - b.power.r, max(lost_before.g - b.power.g, lost_before.b - b.power.b));
+    let deficit = max(1.0 - max(b.power.r, max(b.power.g, b.power.b)), 0.0);
+    if (loss > 0.0 && deficit > 0.0) {
+        let before = max(deficit - loss, 0.0);
+        b.shadow = (b.shadow * before + 0.5 * (x0.z + z) * loss) / (before + loss);
+    }
+    b.value = value;
+
+    // Neighbours on plane k: their drift needs only their stored state.
+    let gi = vec2<i32>(ij);
+    var du: vec3<f32>;
+    var dv: vec3<f32>;
+    var nb_pos: array<vec4<f32>, 4>;
+    if (REFRACTION) {
+        nb_pos[0] = neighbour_pos(gi - vec2<i32>(1, 0), read, z_prev, z);
+        nb_pos[1] = neighbour_pos(gi + vec2<i32>(1, 0), read, z_prev, z);
+        nb_pos[2] = neighbour_pos(gi - vec2<i32>(0, 1), read, z_prev, z);
+        nb_pos[3] = neighbour_pos(gi + vec2<i32>(0, 1), read, z_prev, z);
+        du = cell_axis(b.pos, nb_pos[0], nb_pos[1]);
+        dv = cell_axis(b.pos, nb_pos[2], nb_pos[3]);
+    } else {
+        let s = P.beam_origin.z;
+        let z0 = P.plane.x;
+        du = unproject(vec2<f32>(s, 0.0), z0) - unproject(vec2<f32>(0.0), z0);
+        dv = unproject(vec2<f32>(0.0, s), z0) - unproject(vec2<f32>(0.0), z0);
+    }
+
+    if (LIGHT_FILTER) {
+        // The neighbours' power after their own attenuation is not known yet; their power on
+        // the previous plane lags the exchange by one segment, which the variance per step
+        // (≪ the spacing²) makes negligible.
+        var nb: array<Beam, 4>;
+        var spacing: vec4<f32>;
+        let offsets = array<vec2<i32>, 4>(vec2<i32>(-1, 0), vec2<i32>(1, 0), vec2<i32>(0, -1), vec2<i32>(0, 1));
+        for (var n = 0u; n < 4u; n++) {
+            let o = gi + offsets[n];
+            if (o.x < 0 || o.y < 0 || o.x >= i32(P.beam_grid.x) || o.y >= i32(P.beam_grid.y)) {
+                nb[n] = b;
+                spacing[n] = 1.0;
+                continue;
+            }
+            nb[n] = load_beam(u32(o.y) * P.beam_grid.x + u32(o.x), read, z_prev);
+            if (n < 2u) {
+                spacing[n] = length(du);
+            } else {
+                spacing[n] = length(dv);
+            }
+        }
+        let f = diffuse(b, nb, spacing, z, l);
+        b.power = max(b.power + f.xyz, vec3<f32>(0.0));
+        b.shadow = f.w;
+    }
+
+    deposit_beam(k, b, du, dv, hash(index ^ hash(k ^ 0x5bd1e995u)));
+
+    if (REFRACTION) {
+        let ix = index_at(b.pos);
+        // Kick with the segment's path length (Eq. 8: v += Δs ∇η along the path).
+        b.v = snell_renormalise(b.v + l * ix.grad, ix);
+    }
+    store_beam(index, k % 2u, b);
+}
+
+// Light arriving at the view-space point p on plane k (fluence relative to the source, and
+// the power-weighted direction of travel): bilinear over the deposited pixels, plus the
+// unobstructed light outside the traced beams.
+fn beams_light_at(k: u32, p: vec3<f32>) -> LightSample {
+    let t = project(p);
+    let lo = floor(t);
+    let f = t - lo;
+    let channels = P.tiles.w;
+    let base = (k % 3u) * u32(P.size.x) * u32(P.size.y) * channels;
+    var color = vec3<f32>(0.0);
+    var dir = vec3<f32>(0.0);
+    let outside = beam_region_outside(k);
+    for (var n = 0u; n < 4u; n++) {
+        let o = vec2<f32>(f32(n & 1u), f32(n >> 1u));
+        let q = lo + o;
+        let wx = select(1.0 - f.x, f.x, (n & 1u) == 1u);
+        let wy = select(1.0 - f.y, f.y, (n >> 1u) == 1u);
+        let w = wx * wy;
+        var c = vec3<f32>(0.0);
+        if (in_rect(vec2<i32>(q))) {
+            let texel = base + (u32(q.y) * u32(P.size.x) + u32(q.x)) * channels;
+            let r = f32(min(atomicLoad(&light_acc[texel]), ACC_SATURATED));
+            c = vec3<f32>(r);
+            if (MEDIUM) {
+                c.g = f32(min(atomicLoad(&light_acc[texel + 1u]), ACC_SATURATED));
+                c.b = f32(min(atomicLoad(&light_acc[texel + 2u]), ACC_SATURATED));
+            }
+            c /= ACC_SCALE;
+            if (deposits_direction()) {
+                var nc = 1u;
+                if (MEDIUM) {
+                    nc = 3u;
+                }
+                dir += w * vec3<f32>(
+                    f32(bitcast<i32>(atomicLoad(&light_acc[texel + nc]))),
+                    f32(bitcast<i32>(atomicLoad(&light_acc[texel + nc + 1u]))),
+                    f32(bitcast<i32>(atomicLoad(&light_acc[texel + nc + 2u]))));
+            }
+        }
+        // Unobstructed light where no beam is traced (outside the volume's shadow).
+        c += vec3<f32>(outside_fraction(q, outside));
+        color += w * c;
+    }
+    if (deposits_direction()) {
+        if (dot(dir, dir) > 0.0) {
+            dir = normalize(dir);
+        } else {
+            dir = P.light_dir.xyz;
+        }
+    } else {
+        dir = P.light_dir.xyz;
+    }
+    return LightSample(color, dir);
+}
+
+// The rect (pixel edges x0, y0, x1, y1 on plane k) that the traced beams cover when nothing
+// deflects them: the beam grid's cells carried along the light.
+fn beam_region_outside(k: u32) -> vec4<f32> {
+    let z0 = P.plane.x;
+    let z = plane_z(k);
+    let e0 = P.beam_origin.xy;
+    let e1 = e0 + vec2<f32>(P.beam_grid.xy) * P.beam_origin.z;
+    let a = project(unrefracted(unproject(e0 - vec2<f32>(0.5), z0), z)) + vec2<f32>(0.5);
+    let b = project(unrefracted(unproject(e1 - vec2<f32>(0.5), z0), z)) + vec2<f32>(0.5);
+    return vec4<f32>(min(a, b), max(a, b));
+}
+
+// Fraction of pixel q (spanning [q, q + 1) in pixel-edge coordinates) outside the rect r.
+fn outside_fraction(q: vec2<f32>, r: vec4<f32>) -> f32 {
+    let ox = max(min(q.x + 1.0, r.z) - max(q.x, r.x), 0.0);
+    let oy = max(min(q.y + 1.0, r.w) - max(q.y, r.y), 0.0);
+    return 1.0 - ox * oy;
+}

@@ -1,0 +1,142 @@
+// View rays (Section 4.3): one per pixel of the rect that meets the volume, advanced forward
+// from plane to plane (Eq. 8), composited with the Oddy–Willis model (Eq. 14).
+
+fn light_at(k: u32, p: vec3<f32>) -> LightSample {
+    if (BEAMS) {
+        return beams_light_at(k, p);
+    }
+    return backward_light_at(k, p);
+}
+
+// The ray's position on plane k (view space).
+fn view_position(px: vec2<u32>, i: u32, k: u32) -> vec3<f32> {
+    if (REFRACTION) {
+        return vec3<f32>(view_ray[i].xy, plane_z(k));
+    }
+    return unproject(vec2<f32>(px), plane_z(k));
+}
+
+fn view_init(px: vec2<u32>) {
+    if (!in_rect(vec2<i32>(px))) {
+        return;
+    }
+    let i = pixel_index(px);
+    let t = vec2<f32>(px);
+    let x = unproject(t, P.plane.x);
+    let d = primary_dir(t);
+    var v = d * P.texel.w;
+    var eta = P.texel.w;
+    if (REFRACTION) {
+        let ix = index_at(x);
+        eta = ix.eta;
+        v = entering(d, eta);
+        view_ray[i] = vec4<f32>(x.xy, v.xy);
+    }
+    // w of aux: η where the ray is (the front of its next segment).
+    view_aux[i] = vec4<f32>(v.z, sample_value(x), 1.0, eta);
+    store_view_color(i, vec4<f32>(0.0));
+    if (MEDIUM) {
+        store_view_medium(i, vec4<f32>(1.0));
+    }
+}
+
+// The light at the ray's start on plane 0, once plane 0's light is complete.
+fn view_first_light(px: vec2<u32>) {
+    let i = pixel_index(px);
+    store_view_light(i, vec4<f32>(light_at(0u, view_position(px, i, 0u)).color, 0.0));
+}
+
+// One segment from plane k-1 to plane k.
+fn view_step(px: vec2<u32>, k: u32) {
+    let i = pixel_index(px);
+    var aux = view_aux[i];
+    if (aux.z <= 0.0) {
+        return;
+    }
+    let ds = P.plane.y;
+    let z = plane_z(k);
+    let x0 = view_position(px, i, k - 1u);
+    var v = primary_dir(vec2<f32>(px));
+    if (REFRACTION) {
+        v = vec3<f32>(view_ray[i].zw, aux.x);
+    }
+    let dir = safe_normalize(v);
+    if (dir.z < P.limits.y && guarded(SG_VIEW_MIN_Z)) {
+        // The ray turned (nearly) parallel to the planes or back toward the camera: it leaves
+        // the sweep here and keeps its direction for the environment lookup.
+        aux.z = 0.0;
+        view_aux[i] = aux;
+        return;
+    }
+    // Eq. 8 position update, ending on the next plane (Algorithm 1, line 32).
+    let x1 = x0 + dir * ((z - x0.z) / dir.z);
+    let value1 = sample_value(x1);
+    let ratio = length(x1 - x0) / ds;
+    let s = segment_particles(aux.y, value1, ratio, is_clipped(0.5 * (x0 + x1)));
+    // Diffuse light over the segment: the mean of its two ends (trapezoid rule); the front
+    // end alone makes surfaces facing the light too bright.
+    let l0 = load_view_light(i).rgb;
+    let l1 = light_at(k, x1);
+    let i_d = 0.5 * (l0 + l1.color) * P.light_color.rgb;
+    var color = load_view_color(i);
+    var medium = vec3<f32>(1.0);
+    if (MEDIUM) {
+        medium = load_view_medium(i).rgb;
+    }
+    var ix = Index(P.texel.w, vec3<f32>(0.0));
+    if (REFRACTION) {
+        ix = index_at(x1);
+    }
+    var i_s = vec3<f32>(0.0);
+    if (SPECULAR) {
+        let gl = length(ix.grad);
+        if (gl > MIN_GRADIENT_LENGTH || !guarded(SG_GRADIENT_LENGTH)) {
+            // Fresnel from the index on both sides of the interface along its normal, counted
+            // once per interface: each segment adds its share of the index change across it.
+            let up = ix.grad / gl;
+            let h = P.budget.y;
+            let eta_hi = index_at(x1 + h * up).eta;
+            let eta_lo = index_at(x1 - h * up).eta;
+            var n1 = eta_lo;
+            var n2 = eta_hi;
+            if (dot(dir, up) < 0.0) {
+                n1 = eta_hi;
+                n2 = eta_lo;
+            }
+            let share = clamp(abs(ix.eta - aux.w) / max(abs(eta_hi - eta_lo), MIN_GRADIENT_LENGTH), 0.0, 1.0);
+            let view = -dir;
+            var n = up;
+            if (dot(n, view) < 0.0) {
+                n = -n;
+            }
+            let f = fresnel_dielectric(dot(n, view), n1, n2);
+            i_s = P.shading.x * share * f * cook_torrance(n, -l1.dir, view, P.shading.y) * l1.color * P.light_color.rgb;
+        }
+    }
+    // Eq. 14 (Oddy–Willis compositing).
+    let transparency = 1.0 - color.a;
+    color = vec4<f32>(color.rgb + transparency * medium * (s.rgb * i_d + i_s), color.a + transparency * s.a);
+    if (guarded(SG_MAX_RADIANCE)) {
+        color = vec4<f32>(min(color.rgb, vec3<f32>(MAX_RADIANCE)), color.a);
+    }
+    if (MEDIUM) {
+        medium *= segment_medium(aux.y, value1, ratio);
+        store_view_medium(i, vec4<f32>(medium, 1.0));
+    }
+    if (REFRACTION) {
+        // Eq. 8 direction update: v += Δs ∇η along the segment, |v| = η (Snell).
+        v = snell_renormalise(v + ratio * ds * ix.grad, ix);
+        view_ray[i] = vec4<f32>(x1.xy, v.xy);
+        aux.x = v.z;
+        aux.w = ix.eta;
+    }
+    aux.y = value1;
+    // Early termination once nothing behind can show through.
+    let through = (1.0 - color.a) * max(medium.r, max(medium.g, medium.b));
+    if (through < 1.0 - P.shading.z) {
+        aux.z = 0.0;
+    }
+    view_aux[i] = aux;
+    store_view_color(i, color);
+    store_view_light(i, vec4<f32>(l1.color, 0.0));
+}
