@@ -157,7 +157,6 @@ pub(super) fn run(
         1 + (req.debug_depth.clamp(0.0, 1.0) * (view.planes - 1) as f32).round() as u32
     };
 
-    let mut rec = Recorder::new(ctx, "render: upload and init")?;
     let window = prepared.window();
     let eta = match (&prepared.eta_volume, features.eta_volume) {
         (Some(v), true) => Some((v.as_ref(), v.value_range)),
@@ -166,11 +165,11 @@ pub(super) fn run(
     // Scene textures are kept between renders while what they hold is unchanged (an
     // interactive view changes mostly the camera and light).
     let key = TexturesKey::new(prepared, features.eta_volume);
+    let mut pending = None;
     if !cache.as_ref().is_some_and(|c| c.matches(&key)) {
         *cache = None; // free the old textures before allocating new ones
-        let textures = SceneTextures::upload(
+        let (textures, upload) = SceneTextures::upload(
             ctx,
-            &mut rec,
             vol,
             window,
             eta,
@@ -179,9 +178,10 @@ pub(super) fn run(
             prepared.env.as_ref(),
         )?;
         *cache = Some(CachedTextures::new(key, textures));
+        pending = Some(upload);
     }
     let cached = cache
-        .as_mut()
+        .as_ref()
         .ok_or_else(|| RenderError::Setup("internal: scene textures missing".into()))?;
 
     let mut uniform = Buffer::new_upload(
@@ -211,15 +211,14 @@ pub(super) fn run(
         }
     }
     let output = Image::new(ctx, ImageDesc::storage_2d("output", Format::R32G32B32A32_SFLOAT, w, h))?;
-    let mut all: Vec<&Image> = state.iter().flatten().collect();
-    all.push(&output);
-    rec.init_layout(&all);
+    let mut readback = Buffer::new_readback(ctx, "output readback", (w * h) as u64 * 16)?;
+    let ts = Timestamps::new(ctx, 2)?;
 
     // sets[p][r]: pipeline p, reading side r and writing side 1 - r.
     let mut sets: Vec<[DescriptorSet; 2]> = Vec::new();
     for p in pipelines {
         let make = |read: usize| -> Result<DescriptorSet, GpuError> {
-            let set = DescriptorSet::new(ctx, p, &format!("{} reads {}", p.label, ["A", "B"][read]))?;
+            let mut set = DescriptorSet::new(ctx, p, &format!("{} reads {}", p.label, ["A", "B"][read]))?;
             let t = &cached.textures;
             let mut writes = vec![
                 (slot::PARAMS, Resource::Uniform(&uniform)),
@@ -246,6 +245,16 @@ pub(super) fn run(
         };
         sets.push([make(0)?, make(1)?]);
     }
+
+    // Everything the commands use is created above: the recorders borrow it.
+    let mut rec = Recorder::new(ctx, "render: upload and init")?;
+    if let Some(upload) = pending {
+        cached.textures.record_upload(&mut rec, upload);
+    }
+    let mut all: Vec<&Image> = state.iter().flatten().collect();
+    all.push(&output);
+    rec.init_layout(&all);
+
     let groups = [w.div_ceil(WORKGROUP), h.div_ceil(WORKGROUP), 1];
     let planes_per_submit = (TEXELS_PER_SUBMIT / (w as u64 * h as u64)).clamp(1, PLANES_PER_SUBMIT as u64) as u32;
     let push = |plane: u32| Immediates {
@@ -255,7 +264,7 @@ pub(super) fn run(
     };
 
     // Init writes side A (set reading B); plane i reads side (i-1) % 2.
-    rec.dispatch(&pipelines[0], &sets[0][1], bytemuck::bytes_of(&push(0)), groups);
+    rec.dispatch(&pipelines[0], &sets[0][1], bytemuck::bytes_of(&push(0)), groups)?;
     rec.compute_to_compute();
     let bar = progress_bar(req.progress, planes_run as u64);
     let mut gpu_ms = 0.0;
@@ -278,32 +287,27 @@ pub(super) fn run(
             Some(r) => r,
             None => Recorder::new(ctx, "render: planes")?,
         };
-        let ts = Timestamps::new(ctx, 2)?;
         r.reset_timestamps(&ts);
         r.timestamp(&ts, 0);
         let end = (plane + chunk).min(planes_run);
         while plane < end {
             let read = ((plane - 1) % 2) as usize;
-            r.dispatch(&pipelines[1], &sets[1][read], bytemuck::bytes_of(&push(plane)), groups);
+            r.dispatch(&pipelines[1], &sets[1][read], bytemuck::bytes_of(&push(plane)), groups)?;
             r.compute_to_compute();
             plane += 1;
         }
         let last = plane >= planes_run;
-        let readback = if last {
+        if last {
             let read = ((planes_run - 1) % 2) as usize;
             r.dispatch(
                 &pipelines[2],
                 &sets[2][read],
                 bytemuck::bytes_of(&push(planes_run)),
                 groups,
-            );
+            )?;
             r.compute_to_transfer();
-            let buf = Buffer::new_readback(ctx, "output readback", (w * h) as u64 * 16)?;
-            r.copy_to_buffer(&output, &buf);
-            Some(buf)
-        } else {
-            None
-        };
+            r.copy_to_buffer(&output, &mut readback);
+        }
         r.timestamp(&ts, 1);
         r.submit_and_wait()?;
         cached.uploaded();
@@ -311,11 +315,11 @@ pub(super) fn run(
         if let Some(b) = &bar {
             b.set_position(plane as u64);
         }
-        if let Some(buf) = readback {
+        if last {
             if let Some(b) = bar {
                 b.finish_and_clear();
             }
-            let bytes = buf.read()?;
+            let bytes = readback.read()?;
             let pixels: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(bytes);
             return Ok(RenderOutput {
                 image: RenderedImage {
