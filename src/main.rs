@@ -429,7 +429,9 @@ fn is_hang(err: &anyhow::Error) -> bool {
 
 /// Exits without running the C library's exit handlers: after a device hang the driver may
 /// still be executing the abandoned work, and tearing the driver down under it can crash or
-/// block. stderr is unbuffered, so the message is already out.
+/// block. stderr is unbuffered, so the message is already out. The crate's one `unsafe` outside
+/// `gpu` (Cargo.toml denies it elsewhere).
+#[allow(unsafe_code)]
 fn exit_now(code: u8) -> ! {
     #[cfg(unix)]
     // SAFETY: _exit only ends the process; no Rust state needs to outlive it.
