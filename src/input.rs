@@ -27,6 +27,18 @@ pub enum InputError {
     Render(#[from] RenderError),
 }
 
+impl crate::Classify for InputError {
+    fn exit_class(&self) -> crate::ExitClass {
+        match self {
+            InputError::Missing | InputError::Option(_) => crate::ExitClass::Input,
+            InputError::Scene(e) => e.exit_class(),
+            InputError::Volume(e) => e.exit_class(),
+            InputError::Transfer(e) => e.exit_class(),
+            InputError::Render(e) => e.exit_class(),
+        }
+    }
+}
+
 /// The input options shared by `caustica render` and `caustica view`.
 #[derive(clap::Args, Clone, Debug)]
 pub struct InputArgs {

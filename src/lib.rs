@@ -19,6 +19,9 @@
 //! Each layer only calls the one below it: `main` and `app` use `render` + `scene`; `render` uses `gpu`;
 //! nothing in `gpu` knows what a volume is.
 
+mod exit_class;
+pub use exit_class::{Classify, ExitClass};
+
 pub mod app;
 pub mod bench;
 // The one module with `unsafe` code (Cargo.toml denies it elsewhere): the documented layer

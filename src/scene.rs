@@ -31,6 +31,16 @@ pub enum SceneError {
     Transfer(#[from] TransferError),
 }
 
+impl crate::Classify for SceneError {
+    fn exit_class(&self) -> crate::ExitClass {
+        match self {
+            SceneError::Io { .. } | SceneError::Parse { .. } | SceneError::Invalid(_) => crate::ExitClass::Input,
+            SceneError::Volume(e) => e.exit_class(),
+            SceneError::Transfer(e) => e.exit_class(),
+        }
+    }
+}
+
 /// Where the volume comes from.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]

@@ -35,6 +35,17 @@ pub enum BenchError {
     Plan(String),
 }
 
+impl crate::Classify for BenchError {
+    fn exit_class(&self) -> crate::ExitClass {
+        match self {
+            BenchError::Render(e) => e.exit_class(),
+            BenchError::Reference(e) => e.exit_class(),
+            BenchError::Scene(e) => e.exit_class(),
+            BenchError::Write { .. } | BenchError::Plan(_) => crate::ExitClass::Input,
+        }
+    }
+}
+
 /// One point of the sweep: the knobs a user can turn.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Setting {

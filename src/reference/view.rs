@@ -21,6 +21,12 @@ pub enum ReferenceError {
     Setup(String),
 }
 
+impl crate::Classify for ReferenceError {
+    fn exit_class(&self) -> crate::ExitClass {
+        crate::ExitClass::Input // a scene the reference cannot render
+    }
+}
+
 /// Accuracy knobs of the reference.
 #[derive(Clone, Debug)]
 pub struct ReferenceSettings {

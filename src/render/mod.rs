@@ -50,6 +50,22 @@ pub enum RenderError {
     Cancelled,
 }
 
+impl crate::Classify for RenderError {
+    fn exit_class(&self) -> crate::ExitClass {
+        match self {
+            RenderError::Gpu(e) => e.exit_class(),
+            RenderError::Scene(e) => e.exit_class(),
+            RenderError::Volume(e) => e.exit_class(),
+            RenderError::Environment(e) => e.exit_class(),
+            // A view that cannot be rendered as asked (too many planes, an image larger than
+            // the device allows): the request is at fault, not the device.
+            RenderError::Setup(_) => crate::ExitClass::Input,
+            // Only interactive renders are cancelled; the command line never sees it.
+            RenderError::Cancelled => crate::ExitClass::Input,
+        }
+    }
+}
+
 /// A scene with its data loaded: volumes, transfer functions, environment image.
 pub struct PreparedScene {
     pub scene: Scene,
