@@ -103,13 +103,17 @@ struct Immediates {
 @group(0) @binding(13) var view_dir_in: texture_2d<f32>;
 @group(0) @binding(14) var color_in: texture_2d<f32>;
 @group(0) @binding(15) var medium_in: texture_2d<f32>;
-// Write side (state at plane i).
-@group(0) @binding(16) var light_out: texture_storage_2d<rgba16float, write>;
+// Write side (state at plane i). Light, colour and medium are stored at the scene's
+// precision: `ColourState` is rgba16float as written here, and the renderer gives this one
+// alias rgba32float for `precision = "f32"` (`ShaderSource::set_storage_format`; WGSL has no
+// override for a texel format).
+alias ColourState = texture_storage_2d<rgba16float, write>;
+@group(0) @binding(16) var light_out: ColourState;
 @group(0) @binding(17) var light_dir_out: texture_storage_2d<rgba32float, write>;
 @group(0) @binding(18) var view_pos_out: texture_storage_2d<rgba32float, write>;
 @group(0) @binding(19) var view_dir_out: texture_storage_2d<rgba32float, write>;
-@group(0) @binding(20) var color_out: texture_storage_2d<rgba16float, write>;
-@group(0) @binding(21) var medium_out: texture_storage_2d<rgba16float, write>;
+@group(0) @binding(20) var color_out: ColourState;
+@group(0) @binding(21) var medium_out: ColourState;
 @group(0) @binding(22) var image_out: texture_storage_2d<rgba32float, write>;
 
 var<immediate> I: Immediates;

@@ -1,30 +1,23 @@
 //! What the gpu layer's types cannot rule out at compile time it refuses at run time: a
 //! dispatch with a descriptor set that leaves a binding empty, that was made for another
-//! pipeline, or with immediates of the wrong size. (Dropping or rewriting a resource a pending
+//! pipeline, or with immediates of the wrong size; a write of a resource the binding cannot
+//! take. (Dropping or rewriting a resource a pending
 //! command uses does not compile; see the `compile_fail` examples of `Recorder` and
 //! `DescriptorSet`.)
 
 mod common;
 
 use caustica::gpu::{ComputePipeline, DescriptorSet, Format, Image, ImageDesc, Recorder, Resource};
-use caustica::render::shaders::{bindings, Pass};
+use caustica::render::shaders::Pass;
 use caustica::render::{DebugView, Features, Immediates};
 use caustica::scene::Precision;
 
 fn pipeline(gpu: &common::Gpu, pass: Pass) -> ComputePipeline {
     let source = pass.parse(Precision::F16).unwrap();
-    let spirv = source
+    let compiled = source
         .specialise("main", &Features::default().constants(DebugView::Image))
         .unwrap();
-    ComputePipeline::new(
-        &gpu.ctx,
-        pass.file(),
-        &spirv,
-        "main",
-        &bindings(),
-        std::mem::size_of::<Immediates>() as u32,
-    )
-    .unwrap()
+    ComputePipeline::new(&gpu.ctx, pass.file(), &compiled).unwrap()
 }
 
 #[test]
@@ -38,7 +31,7 @@ fn dispatch_refuses_incomplete_or_foreign_sets_and_wrong_immediates() {
     )
     .unwrap();
     let mut partial = DescriptorSet::new(&gpu.ctx, &init, "partial").unwrap();
-    partial.write(&[(22, Resource::Image(&image))]).unwrap();
+    partial.write(&[("image_out", Resource::Image(&image))]).unwrap();
     let foreign = DescriptorSet::new(&gpu.ctx, &finish, "made for finish").unwrap();
     let push = [0u8; std::mem::size_of::<Immediates>()];
 
@@ -47,10 +40,13 @@ fn dispatch_refuses_incomplete_or_foreign_sets_and_wrong_immediates() {
     assert!(err.to_string().contains("not written"), "{err}");
     let err = rec.dispatch(&init, &foreign, &push, [1, 1, 1]).unwrap_err();
     assert!(err.to_string().contains("made for"), "{err}");
-    // A kind mismatch is refused when writing: slot 0 is the uniform block.
+    // Refused when writing: an image for the uniform block, a name the shader does not
+    // declare, an image of another format than the binding's (light_out is rgba16float).
     let mut other = DescriptorSet::new(&gpu.ctx, &init, "mismatch").unwrap();
-    assert!(other.write(&[(0, Resource::Image(&image))]).is_err());
-    assert!(other.write(&[(99, Resource::Image(&image))]).is_err());
+    assert!(other.write(&[("P", Resource::Image(&image))]).is_err());
+    assert!(other.write(&[("no_such_binding", Resource::Image(&image))]).is_err());
+    let err = other.write(&[("light_out", Resource::Image(&image))]).unwrap_err();
+    assert!(err.to_string().contains("declares"), "{err}");
     let err = rec.dispatch(&init, &partial, &push[..4], [1, 1, 1]).unwrap_err();
     assert!(err.to_string().contains("immediates"), "{err}");
     // Nothing was recorded, so the (empty) submission is valid.

@@ -301,13 +301,13 @@ impl<'r> Recorder<'r> {
         push: &[u8],
         groups: [u32; 3],
     ) -> Result<(), GpuError> {
-        if push.len() != pipeline.push_constant_bytes as usize {
+        if push.len() != pipeline.layout.immediate_bytes as usize {
             return Err(GpuError::Shader {
                 name: pipeline.label.clone(),
                 message: format!(
-                    "{} bytes of immediates given, the pipeline takes {}",
+                    "{} bytes of immediates given, the shader declares {}",
                     push.len(),
-                    pipeline.push_constant_bytes
+                    pipeline.layout.immediate_bytes
                 ),
             });
         }

@@ -44,7 +44,8 @@ pub use context::{Context, ContextDesc, DeviceSelector, FENCE_TIMEOUT};
 pub use error::GpuError;
 pub use fault::Faults;
 pub use instance::{list_devices, DeviceInfo};
-pub use pipeline::{Binding, BindingKind, ComputePipeline, DescriptorSet, Resource};
+pub use pipeline::{ComputePipeline, DescriptorSet, Resource};
 pub use resources::{Buffer, Image, ImageDesc, Sampler, SamplerDesc};
+pub use shader::{Binding, BindingKind, CompiledShader, ShaderLayout, ShaderSource};
 
 pub use ash::vk::Format;

@@ -1,4 +1,5 @@
-//! Compute pipelines with one descriptor set, and descriptor sets to bind to them.
+//! Compute pipelines with one descriptor set laid out as the shader declares it, and
+//! descriptor sets to bind to them, written by binding name.
 
 use std::marker::PhantomData;
 use std::sync::Arc;
@@ -6,43 +7,18 @@ use std::sync::Arc;
 use ash::vk;
 
 use super::error::{vk_err, GpuError};
+use super::shader::{Binding, BindingKind, CompiledShader, ShaderLayout};
 use super::{Buffer, Context, Image, Sampler};
 
-/// What a binding slot holds.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum BindingKind {
-    Uniform,
-    SampledImage,
-    Sampler,
-    StorageImage,
-}
-
-impl BindingKind {
-    fn descriptor_type(self) -> vk::DescriptorType {
-        match self {
-            BindingKind::Uniform => vk::DescriptorType::UNIFORM_BUFFER,
-            BindingKind::SampledImage => vk::DescriptorType::SAMPLED_IMAGE,
-            BindingKind::Sampler => vk::DescriptorType::SAMPLER,
-            BindingKind::StorageImage => vk::DescriptorType::STORAGE_IMAGE,
-        }
-    }
-}
-
-/// One slot of the pipeline's descriptor set.
-#[derive(Clone, Copy, Debug)]
-pub struct Binding {
-    pub index: u32,
-    pub kind: BindingKind,
-}
-
-/// A compute pipeline, its layout and its descriptor-set layout.
+/// A compute pipeline, its layout and its descriptor-set layout, made from a
+/// [`CompiledShader`]: bindings, immediate size and workgroup size are the shader's own.
 pub struct ComputePipeline {
     ctx: Arc<Context>,
     pub(crate) raw: vk::Pipeline,
     pub(crate) pipeline_layout: vk::PipelineLayout,
     pub(crate) set_layout: vk::DescriptorSetLayout,
-    pub(crate) push_constant_bytes: u32,
-    pub(crate) bindings: Vec<Binding>,
+    pub(crate) layout: ShaderLayout,
+    workgroup_size: [u32; 3],
     pub label: String,
 }
 
@@ -60,15 +36,9 @@ impl Drop for ShaderModule<'_> {
 }
 
 impl ComputePipeline {
-    pub fn new(
-        ctx: &Arc<Context>,
-        label: &str,
-        spirv: &[u32],
-        entry: &str,
-        bindings: &[Binding],
-        push_constant_bytes: u32,
-    ) -> Result<Self, GpuError> {
+    pub fn new(ctx: &Arc<Context>, label: &str, shader: &CompiledShader) -> Result<Self, GpuError> {
         let d = &ctx.device;
+        let push_constant_bytes = shader.layout.immediate_bytes;
         // Filled in step by step: on an error `Drop` destroys what was created (destroying a
         // null handle does nothing).
         let mut pipeline = ComputePipeline {
@@ -76,11 +46,13 @@ impl ComputePipeline {
             raw: vk::Pipeline::null(),
             pipeline_layout: vk::PipelineLayout::null(),
             set_layout: vk::DescriptorSetLayout::null(),
-            push_constant_bytes,
-            bindings: bindings.to_vec(),
+            layout: shader.layout.clone(),
+            workgroup_size: shader.workgroup_size,
             label: label.into(),
         };
-        let layout_bindings: Vec<_> = bindings
+        let layout_bindings: Vec<_> = shader
+            .layout
+            .bindings
             .iter()
             .map(|b| {
                 vk::DescriptorSetLayoutBinding::default()
@@ -107,14 +79,14 @@ impl ComputePipeline {
         // SAFETY: as above; the set layout is live.
         pipeline.pipeline_layout =
             unsafe { d.create_pipeline_layout(&layout_info, None) }.map_err(vk_err("vkCreatePipelineLayout"))?;
-        let module_info = vk::ShaderModuleCreateInfo::default().code(spirv);
+        let module_info = vk::ShaderModuleCreateInfo::default().code(&shader.spirv);
         let module = ShaderModule {
             ctx,
             // SAFETY: `spirv` is a complete SPIR-V module written by naga; the module is
             // destroyed when `module` goes out of scope.
             raw: unsafe { d.create_shader_module(&module_info, None) }.map_err(vk_err("vkCreateShaderModule"))?,
         };
-        let entry_c = std::ffi::CString::new(entry).map_err(|_| GpuError::Shader {
+        let entry_c = std::ffi::CString::new(shader.entry.as_str()).map_err(|_| GpuError::Shader {
             name: label.into(),
             message: "entry point name contains NUL".into(),
         })?;
@@ -132,6 +104,21 @@ impl ComputePipeline {
         ctx.set_name(pipeline.pipeline_layout, &format!("{label} layout"));
         ctx.set_name(pipeline.set_layout, &format!("{label} set layout"));
         Ok(pipeline)
+    }
+
+    /// The bindings and immediate block the shader declares.
+    pub fn layout(&self) -> &ShaderLayout {
+        &self.layout
+    }
+
+    /// `@workgroup_size` of the shader.
+    pub fn workgroup_size(&self) -> [u32; 3] {
+        self.workgroup_size
+    }
+
+    /// Workgroups that cover `extent` invocations (rounded up per axis).
+    pub fn groups_for(&self, extent: [u32; 3]) -> [u32; 3] {
+        std::array::from_fn(|i| extent[i].div_ceil(self.workgroup_size[i].max(1)))
     }
 }
 
@@ -162,7 +149,7 @@ impl Drop for ComputePipeline {
 /// # use caustica::gpu::{ComputePipeline, Context, DescriptorSet, GpuError, Image, Recorder, Resource};
 /// # fn demo(ctx: &Arc<Context>, pipeline: &ComputePipeline, image: Image) -> Result<(), GpuError> {
 /// let mut set = DescriptorSet::new(ctx, pipeline, "set")?;
-/// set.write(&[(0, Resource::Image(&image))])?;
+/// set.write(&[("image_out", Resource::Image(&image))])?;
 /// let mut rec = Recorder::new(ctx, "dispatch")?;
 /// rec.dispatch(pipeline, &set, &[], [1, 1, 1])?;
 /// rec.submit_and_wait()?;
@@ -178,7 +165,7 @@ impl Drop for ComputePipeline {
 /// # use caustica::gpu::{ComputePipeline, Context, DescriptorSet, GpuError, Image, Recorder, Resource};
 /// # fn demo(ctx: &Arc<Context>, pipeline: &ComputePipeline, image: Image) -> Result<(), GpuError> {
 /// let mut set = DescriptorSet::new(ctx, pipeline, "set")?;
-/// set.write(&[(0, Resource::Image(&image))])?;
+/// set.write(&[("image_out", Resource::Image(&image))])?;
 /// drop(image); // error[E0505]: cannot move out of `image` because it is borrowed
 /// let mut rec = Recorder::new(ctx, "dispatch")?;
 /// rec.dispatch(pipeline, &set, &[], [1, 1, 1])?;
@@ -197,7 +184,9 @@ pub struct DescriptorSet<'a> {
 
 /// A resource to write into a binding slot.
 pub enum Resource<'a> {
-    Uniform(&'a Buffer),
+    /// A uniform or storage buffer, bound whole.
+    Buffer(&'a Buffer),
+    /// A sampled or storage image (its full view).
     Image(&'a Image),
     Sampler(&'a Sampler),
 }
@@ -206,6 +195,7 @@ impl<'a> DescriptorSet<'a> {
     pub fn new(ctx: &Arc<Context>, pipeline: &'a ComputePipeline, label: &str) -> Result<Self, GpuError> {
         let d = &ctx.device;
         let sizes: Vec<_> = pipeline
+            .layout
             .bindings
             .iter()
             .map(|b| vk::DescriptorPoolSize {
@@ -220,7 +210,7 @@ impl<'a> DescriptorSet<'a> {
             // SAFETY: valid create info; the pool (and with it the set) is destroyed in Drop.
             pool: unsafe { d.create_descriptor_pool(&info, None) }.map_err(vk_err("vkCreateDescriptorPool"))?,
             raw: vk::DescriptorSet::null(),
-            written: vec![false; pipeline.bindings.len()],
+            written: vec![false; pipeline.layout.bindings.len()],
             resources: PhantomData,
         };
         let layouts = [pipeline.set_layout];
@@ -235,79 +225,108 @@ impl<'a> DescriptorSet<'a> {
         Ok(set)
     }
 
-    /// Writes one resource per binding slot; errors on an unknown slot or a kind mismatch.
-    pub fn write(&mut self, writes: &[(u32, Resource<'a>)]) -> Result<(), GpuError> {
+    /// Writes one resource per binding, named as in the shader; errors on an unknown name, a
+    /// resource of the wrong kind, or an image or buffer made without the usage (or, for a
+    /// storage image, the format) the binding needs.
+    pub fn write(&mut self, writes: &[(&str, Resource<'a>)]) -> Result<(), GpuError> {
         let mut buffer_infos = Vec::new();
         let mut image_infos = Vec::new();
-        for (index, res) in writes {
+        let mut positions = Vec::new();
+        for (name, res) in writes {
+            let err = |message: String| GpuError::Shader {
+                name: self.pipeline.label.clone(),
+                message: format!("binding {name}: {message}"),
+            };
             let position = self
                 .pipeline
+                .layout
                 .bindings
                 .iter()
-                .position(|b| b.index == *index)
-                .ok_or_else(|| GpuError::Shader {
-                    name: "descriptor set".into(),
-                    message: format!("no binding {index} in the layout"),
-                })?;
-            let kind = self.pipeline.bindings[position].kind;
+                .position(|b| b.name == *name)
+                .ok_or_else(|| err("not declared by the shader".into()))?;
+            let Binding { index, kind, .. } = self.pipeline.layout.bindings[position];
+            let ty = kind.descriptor_type();
+            let needs = |ok: bool, what: String| if ok { Ok(()) } else { Err(err(what)) };
             match (kind, res) {
-                (BindingKind::Uniform, Resource::Uniform(b)) => buffer_infos.push((
-                    *index,
-                    vk::DescriptorBufferInfo {
+                (BindingKind::UniformBuffer | BindingKind::StorageBuffer { .. }, Resource::Buffer(b)) => {
+                    let usage = if kind == BindingKind::UniformBuffer {
+                        vk::BufferUsageFlags::UNIFORM_BUFFER
+                    } else {
+                        vk::BufferUsageFlags::STORAGE_BUFFER
+                    };
+                    needs(b.usage.contains(usage), format!("{} lacks {usage:?} usage", b.label))?;
+                    let info = vk::DescriptorBufferInfo {
                         buffer: b.raw,
                         offset: 0,
                         range: vk::WHOLE_SIZE,
-                    },
-                )),
-                (BindingKind::SampledImage | BindingKind::StorageImage, Resource::Image(i)) => image_infos.push((
-                    *index,
-                    kind,
-                    vk::DescriptorImageInfo {
+                    };
+                    buffer_infos.push((index, ty, info));
+                }
+                (BindingKind::SampledImage | BindingKind::StorageImage { .. }, Resource::Image(i)) => {
+                    if let BindingKind::StorageImage { format, .. } = kind {
+                        needs(
+                            i.desc.usage.contains(vk::ImageUsageFlags::STORAGE),
+                            format!("{} is not a storage image", i.desc.label),
+                        )?;
+                        needs(
+                            i.desc.format == format,
+                            format!(
+                                "{} is {:?}, the shader declares {format:?}",
+                                i.desc.label, i.desc.format
+                            ),
+                        )?;
+                    } else {
+                        needs(
+                            i.desc.usage.contains(vk::ImageUsageFlags::SAMPLED),
+                            format!("{} is not a sampled image", i.desc.label),
+                        )?;
+                    }
+                    let info = vk::DescriptorImageInfo {
                         sampler: vk::Sampler::null(),
                         image_view: i.view,
                         image_layout: vk::ImageLayout::GENERAL,
-                    },
-                )),
+                    };
+                    image_infos.push((index, ty, info));
+                }
                 (BindingKind::Sampler, Resource::Sampler(s)) => image_infos.push((
-                    *index,
-                    kind,
+                    index,
+                    ty,
                     vk::DescriptorImageInfo {
                         sampler: s.raw,
                         image_view: vk::ImageView::null(),
                         image_layout: vk::ImageLayout::UNDEFINED,
                     },
                 )),
-                _ => {
-                    return Err(GpuError::Shader {
-                        name: "descriptor set".into(),
-                        message: format!("binding {index} expects {kind:?}"),
-                    })
-                }
+                _ => return Err(err(format!("expects {kind:?}"))),
             }
-            self.written[position] = true;
+            positions.push(position);
         }
         let mut vk_writes = Vec::new();
-        for (index, info) in &buffer_infos {
+        for (index, ty, info) in &buffer_infos {
             vk_writes.push(
                 vk::WriteDescriptorSet::default()
                     .dst_set(self.raw)
                     .dst_binding(*index)
-                    .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)
+                    .descriptor_type(*ty)
                     .buffer_info(std::slice::from_ref(info)),
             );
         }
-        for (index, kind, info) in &image_infos {
+        for (index, ty, info) in &image_infos {
             vk_writes.push(
                 vk::WriteDescriptorSet::default()
                     .dst_set(self.raw)
                     .dst_binding(*index)
-                    .descriptor_type(kind.descriptor_type())
+                    .descriptor_type(*ty)
                     .image_info(std::slice::from_ref(info)),
             );
         }
         // SAFETY: the written handles are borrowed for 'a, as long as the set lives; `&mut self`
-        // means no recorder holds the set, so no pending command uses it.
+        // means no recorder holds the set, so no pending command uses it; descriptor types
+        // match the layout (checked above).
         unsafe { self.ctx.device.update_descriptor_sets(&vk_writes, &[]) };
+        for p in positions {
+            self.written[p] = true;
+        }
         Ok(())
     }
 
@@ -321,12 +340,13 @@ impl<'a> DescriptorSet<'a> {
         if self.pipeline.set_layout != pipeline.set_layout {
             return Err(err(format!("descriptor set made for {}", self.pipeline.label)));
         }
-        let missing: Vec<String> = pipeline
+        let missing: Vec<&str> = pipeline
+            .layout
             .bindings
             .iter()
             .zip(&self.written)
             .filter(|(_, w)| !**w)
-            .map(|(b, _)| b.index.to_string())
+            .map(|(b, _)| b.name.as_str())
             .collect();
         if missing.is_empty() {
             Ok(())

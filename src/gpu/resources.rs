@@ -86,6 +86,7 @@ pub struct Buffer {
     pub(crate) raw: vk::Buffer,
     allocation: Option<Allocation>,
     pub size: u64,
+    pub usage: vk::BufferUsageFlags,
     pub label: String,
 }
 
@@ -98,6 +99,17 @@ impl Buffer {
         usage: vk::BufferUsageFlags,
     ) -> Result<Self, GpuError> {
         Self::new(ctx, label, size, usage, MemoryLocation::CpuToGpu)
+    }
+
+    /// A buffer only the GPU reads and writes (storage buffers, counters), filled by copies
+    /// or shaders.
+    pub fn new_device(
+        ctx: &Arc<Context>,
+        label: &str,
+        size: u64,
+        usage: vk::BufferUsageFlags,
+    ) -> Result<Self, GpuError> {
+        Self::new(ctx, label, size, usage, MemoryLocation::GpuOnly)
     }
 
     /// A buffer the GPU writes and the CPU reads back.
@@ -130,6 +142,7 @@ impl Buffer {
             raw: vk::Buffer::null(),
             allocation: None,
             size,
+            usage,
             label: label.to_string(),
         };
         // SAFETY: valid create info; the buffer is destroyed in Drop.

@@ -24,8 +24,7 @@ use std::collections::HashMap;
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
-use crate::gpu::shader::ShaderSource;
-use crate::gpu::{ComputePipeline, Context, GpuError};
+use crate::gpu::{ComputePipeline, Context, GpuError, ShaderSource};
 use crate::scene::{Environment, Precision, Scene, SceneError};
 use crate::transfer::TransferFunctions;
 use crate::volume::resample::{fitting_dims, resample};
@@ -305,16 +304,9 @@ impl Renderer {
         for c in constants.iter_mut().filter(|c| c.0 == "SAFEGUARDS_OFF") {
             c.1 = safeguards_off as f64;
         }
-        let spirv = source.specialise("main", &constants)?;
+        let compiled = source.specialise("main", &constants)?;
         let label = format!("{} [{} {}]", pass.file(), features.describe(), precision.name());
-        let p = Arc::new(ComputePipeline::new(
-            &self.ctx,
-            &label,
-            &spirv,
-            "main",
-            &shaders::bindings(),
-            std::mem::size_of::<Immediates>() as u32,
-        )?);
+        let p = Arc::new(ComputePipeline::new(&self.ctx, &label, &compiled)?);
         self.pipelines.insert(key, p.clone());
         Ok(p)
     }
