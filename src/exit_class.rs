@@ -38,41 +38,41 @@ pub trait Classify {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::app::ViewError;
+    use crate::bench::BenchError;
     use crate::gpu::GpuError;
     use crate::input::InputError;
     use crate::render::RenderError;
-    use crate::scene::SceneError;
+    use crate::scene::{PrepareError, SceneError};
     use crate::volume::VolumeError;
 
-    fn lost() -> GpuError {
-        GpuError::DeviceLost { call: "vkQueueSubmit" }
+    fn lost() -> RenderError {
+        RenderError::Gpu(GpuError::DeviceLost { call: "vkQueueSubmit" })
     }
 
     /// `#[error(transparent)]` wrappers show the inner message; they must report the inner
     /// class too, however deep the GPU error sits.
     #[test]
     fn wrappers_report_the_class_of_what_they_wrap() {
-        assert_eq!(
-            InputError::Render(RenderError::Gpu(lost())).exit_class(),
-            ExitClass::Gpu
-        );
-        assert_eq!(InputError::Render(RenderError::Gpu(lost())).exit_class().code(), 4);
+        assert_eq!(ViewError::Render(lost()).exit_class(), ExitClass::Gpu);
+        assert_eq!(ViewError::Render(lost()).exit_class().code(), 4);
+        assert_eq!(BenchError::Render(lost()).exit_class().code(), 4);
         let hung = RenderError::Gpu(GpuError::Timeout { seconds: 120 });
-        assert_eq!(InputError::Render(hung).exit_class(), ExitClass::GpuHung);
-        let no_device = RenderError::Gpu(GpuError::NoDevice(String::new()));
-        assert_eq!(no_device.exit_class().code(), 3);
-        let bench = crate::bench::BenchError::Render(RenderError::Gpu(lost()));
-        assert_eq!(bench.exit_class(), ExitClass::Gpu);
-        let view = crate::app::ViewError::Render(RenderError::Gpu(lost()));
-        assert_eq!(view.exit_class(), ExitClass::Gpu);
+        assert_eq!(ViewError::Render(hung).exit_class(), ExitClass::GpuHung);
+        let no_device = GpuError::NoDevice(String::new());
+        assert_eq!(ViewError::Gpu(no_device).exit_class().code(), 3);
+        // A frame that failed on the viewer's render thread keeps its class.
+        let frame = ViewError::Frame {
+            message: "lost".into(),
+            class: ExitClass::Gpu,
+        };
+        assert_eq!(frame.exit_class().code(), 4);
         // Input stays input at every depth.
         let volume = || VolumeError::NonFinite { count: 1 };
+        let nested = InputError::Prepare(PrepareError::Scene(SceneError::Volume(volume())));
+        assert_eq!(nested.exit_class(), ExitClass::Input);
         assert_eq!(
-            InputError::Scene(SceneError::Volume(volume())).exit_class(),
-            ExitClass::Input
-        );
-        assert_eq!(
-            InputError::Render(RenderError::Volume(volume())).exit_class(),
+            RenderError::Prepare(PrepareError::Volume(volume())).exit_class(),
             ExitClass::Input
         );
         assert_eq!(RenderError::Setup("too many planes".into()).exit_class().code(), 1);

@@ -512,19 +512,22 @@ fn main() -> ExitCode {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use caustica::app::ViewError;
     use caustica::gpu::GpuError;
     use caustica::input::InputError;
     use caustica::render::RenderError;
 
     /// What `?` makes of an error is what the process exits with.
-    fn fail(error: InputError) -> Result<()> {
+    fn fail(error: impl Classify + std::error::Error + Send + Sync + 'static) -> Result<()> {
         Err(error)?
     }
 
+    /// A GPU failure while the viewer handles its input (loading and rendering a frame on its
+    /// render thread) reaches `main` wrapped in the viewer's error, and still exits 4.
     #[test]
     fn a_gpu_failure_during_input_handling_exits_4() {
         let lost = GpuError::DeviceLost { call: "vkQueueSubmit" };
-        let failure = fail(InputError::Render(RenderError::Gpu(lost))).unwrap_err();
+        let failure = fail(ViewError::Render(RenderError::Gpu(lost))).unwrap_err();
         assert_eq!(failure.class.code(), 4, "{:#}", failure.error);
         assert!(
             failure.error.to_string().contains("device was lost"),
@@ -532,9 +535,9 @@ mod tests {
             failure.error
         );
         let hung = GpuError::Timeout { seconds: 120 };
-        let failure = fail(InputError::Render(RenderError::Gpu(hung))).unwrap_err();
+        let failure = fail(ViewError::Render(RenderError::Gpu(hung))).unwrap_err();
         assert_eq!(failure.class, ExitClass::GpuHung, "ends at once (_exit)");
-        let failure = fail(InputError::Missing).unwrap_err();
+        let failure = fail(ViewError::Input(InputError::Missing)).unwrap_err();
         assert_eq!(failure.class.code(), 1);
     }
 }

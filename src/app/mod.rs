@@ -27,6 +27,7 @@ use anyhow::{Context as _, Result};
 use crate::gpu::{Context, ContextDesc, DeviceSelector, GpuError};
 use crate::input::{fit_to_device, InputArgs, InputError, Prepared};
 use crate::render::{RenderError, Renderer};
+use crate::scene::PrepareError;
 use crate::{Classify, ExitClass};
 
 /// Why the viewer could not start, or stopped with an error.
@@ -38,6 +39,8 @@ pub enum ViewError {
     Gpu(#[from] GpuError),
     #[error(transparent)]
     Render(#[from] RenderError),
+    #[error(transparent)]
+    Prepare(#[from] PrepareError),
     /// The display, the window or the panel, with their context.
     #[error("{0:#}")]
     Viewer(anyhow::Error),
@@ -61,6 +64,7 @@ impl Classify for ViewError {
             ViewError::Input(e) => e.exit_class(),
             ViewError::Gpu(e) => e.exit_class(),
             ViewError::Render(e) => e.exit_class(),
+            ViewError::Prepare(e) => e.exit_class(),
             // No display, or a window that cannot be painted.
             ViewError::Viewer(_) => ExitClass::Input,
             ViewError::Frame { class, .. } => *class,

@@ -173,7 +173,7 @@ fn set_scene(
         if let Err(e) = loaded {
             // Back to the frame that was there: the next request for this one tries again.
             (prepared.scene.volume, prepared.volume, prepared.volume_info) = before;
-            return Err(e);
+            return Err(e.into());
         }
         let window = scene.window.unwrap_or(prepared.volume_info.default_window);
         send(Reply::Volume {

@@ -16,7 +16,7 @@ use crate::gpu::Context;
 use crate::reference::photons::PhotonSettings;
 use crate::reference::{self, ReferenceError, ReferenceSettings};
 use crate::render::{PreparedScene, RenderError, RenderRequest, Renderer};
-use crate::scene::{builtin, Gradient, Precision, SceneError, VolumeSource};
+use crate::scene::{builtin, Gradient, Precision, PrepareError, SceneError, VolumeSource};
 
 pub use metrics::{compare, ImageError, Linear};
 pub use report::{write_csv, write_markdown};
@@ -25,6 +25,8 @@ pub use report::{write_csv, write_markdown};
 pub enum BenchError {
     #[error(transparent)]
     Render(#[from] RenderError),
+    #[error(transparent)]
+    Prepare(#[from] PrepareError),
     #[error(transparent)]
     Reference(#[from] ReferenceError),
     #[error(transparent)]
@@ -39,6 +41,7 @@ impl crate::Classify for BenchError {
     fn exit_class(&self) -> crate::ExitClass {
         match self {
             BenchError::Render(e) => e.exit_class(),
+            BenchError::Prepare(e) => e.exit_class(),
             BenchError::Reference(e) => e.exit_class(),
             BenchError::Scene(e) => e.exit_class(),
             BenchError::Write { .. } | BenchError::Plan(_) => crate::ExitClass::Input,

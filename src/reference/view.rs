@@ -10,7 +10,7 @@ use rayon::prelude::*;
 use super::medium::{Medium, VolumeMedium};
 use super::photons::{self, DistantLight, LightGrid, PhotonSettings};
 use super::rk4::{self, Ray};
-use crate::render::{light_direction, EnvMap, PreparedScene, RenderedImage, ViewSetup};
+use crate::scene::{light_direction, EnvMap, PreparedScene, RenderedImage, ViewSetup};
 use crate::scene::{Environment, Projection};
 
 #[derive(Debug, thiserror::Error)]
