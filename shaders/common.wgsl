@@ -286,7 +286,7 @@ fn unproject(t: vec2<f32>, z: f32) -> vec3<f32> {
 // Continuous pixel coordinates of a view-space point (inverse of `unproject`).
 // The perspective division needs no guard: every point projected lies on a plane of the
 // sweep (p.z = a plane's z, to rounding; MIN_LIGHT_DIR_Z and MIN_VIEW_DIR_Z keep the steps
-// onto it finite), and planes start at z_first >= NEAR_PLANE x radius > 0 (geometry.rs). The
+// onto it finite), and planes start at z_first >= NEAR_PLANE x radius > 0 (scene/view.rs). The
 // rounding is a few ulp of Δs (<= 32 radii) and of z: ~1e-5 radii, far below NEAR_PLANE x
 // radius, and it scales with the scene, so p.z > 0 at any spacing. A fixed floor such as 1e-6
 // view units would instead move planes nearer than that: micrometre voxels given in metres

@@ -3,19 +3,42 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use anyhow::{bail, Context as _, Result};
+use anyhow::{anyhow, Context as _};
 use clap::{Parser, Subcommand};
 
-use caustica::gpu::{list_devices, Context, ContextDesc, DeviceSelector, GpuError};
+use caustica::gpu::{list_devices, Context, ContextDesc, DeviceSelector};
 use caustica::input::{fit_to_device, parse_size, InputArgs, Prepared};
-use caustica::render::{DebugView, RenderError, RenderRequest, Renderer};
+use caustica::render::{DebugView, RenderRequest, Renderer};
 use caustica::scene::{builtin, BUILTIN_SCENES};
-use caustica::volume;
+use caustica::{volume, Classify, ExitClass};
 
-/// Exit codes (see README, "Errors and exit codes").
-const EXIT_INPUT: u8 = 1;
-const EXIT_NO_VULKAN: u8 = 3;
-const EXIT_GPU: u8 = 4;
+/// A failed command: the error and how the process ends. Library errors bring their class
+/// (`Classify`) through `?`; errors of `main`'s own making say theirs, with [`input`] for bad
+/// input.
+#[derive(Debug)]
+struct Failure {
+    error: anyhow::Error,
+    class: ExitClass,
+}
+
+impl<E: Classify + std::error::Error + Send + Sync + 'static> From<E> for Failure {
+    fn from(e: E) -> Self {
+        Failure {
+            class: e.exit_class(),
+            error: e.into(),
+        }
+    }
+}
+
+/// A failure caused by the command's input (arguments, files).
+fn input(error: impl Into<anyhow::Error>) -> Failure {
+    Failure {
+        error: error.into(),
+        class: ExitClass::Input,
+    }
+}
+
+type Result<T, E = Failure> = std::result::Result<T, E>;
 
 /// The validation layer reported errors: the render is not trustworthy (exit code 4).
 #[derive(Debug, thiserror::Error)]
@@ -28,6 +51,12 @@ struct ValidationFailed {
     output: String,
 }
 
+impl Classify for ValidationFailed {
+    fn exit_class(&self) -> ExitClass {
+        ExitClass::Gpu
+    }
+}
+
 /// The image holds NaN, infinite or negative values: a renderer fault (exit code 4).
 #[derive(Debug, thiserror::Error)]
 #[error("the render produced {non_finite} non-finite and {negative} negative values; not writing {output}")]
@@ -35,6 +64,23 @@ struct InvalidImage {
     non_finite: usize,
     negative: usize,
     output: String,
+}
+
+impl Classify for InvalidImage {
+    fn exit_class(&self) -> ExitClass {
+        ExitClass::Gpu
+    }
+}
+
+/// `bench` saw validation errors: its measurements are not trustworthy (exit code 4).
+#[derive(Debug, thiserror::Error)]
+#[error("{0} Vulkan validation errors were reported")]
+struct BenchValidationFailed(u64);
+
+impl Classify for BenchValidationFailed {
+    fn exit_class(&self) -> ExitClass {
+        ExitClass::Gpu
+    }
 }
 
 #[derive(Parser)]
@@ -67,9 +113,11 @@ fn default_job() -> Result<Command> {
         );
         &["caustica", "render", "--scene", DEFAULT_SCENE, "-o", "caustica.png"]
     };
-    Cli::try_parse_from(argv)?
+    Cli::try_parse_from(argv)
+        .map_err(input)?
         .command
         .context("the default job names no command")
+        .map_err(input)
 }
 
 #[derive(Subcommand)]
@@ -212,7 +260,7 @@ fn render(args: &RenderArgs) -> Result<()> {
 }
 
 fn bench(args: &BenchArgs) -> Result<()> {
-    use caustica::bench::{self, BenchError, Plan};
+    use caustica::bench::{self, Plan};
     let scenes: Vec<String> = if args.scenes.is_empty() {
         BUILTIN_SCENES.iter().map(|s| s.to_string()).collect()
     } else {
@@ -228,7 +276,7 @@ fn bench(args: &BenchArgs) -> Result<()> {
     };
     if let Some(f) = args.frames {
         if f == 0 {
-            bail!("--frames must be at least 1");
+            return Err(input(anyhow!("--frames must be at least 1")));
         }
         plan.frames = f;
     }
@@ -237,7 +285,9 @@ fn bench(args: &BenchArgs) -> Result<()> {
     }
     if args.convergence {
         let path = args.out.join("convergence.md");
-        std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+        std::fs::create_dir_all(&args.out)
+            .with_context(|| format!("creating {}", args.out.display()))
+            .map_err(input)?;
         let runs: &[(f64, f64)] = if args.quick {
             &[(1.0, 0.5), (4.0, 0.5), (16.0, 0.5), (16.0, 1.0), (16.0, 0.25)]
         } else {
@@ -260,17 +310,13 @@ fn bench(args: &BenchArgs) -> Result<()> {
             truth,
             &path,
         )?;
-        print!("{}", std::fs::read_to_string(&path)?);
+        print!("{}", read_report(&path).map_err(input)?);
         eprintln!("wrote {}", path.display());
         return Ok(());
     }
     let ctx = Context::new(&ContextDesc::from_env(DeviceSelector::parse(&args.device)))?;
-    // Render errors keep their type so that they map to the GPU exit codes.
-    let report = bench::run(ctx.clone(), &plan, &args.out, true).map_err(|e| match e {
-        BenchError::Render(r) => anyhow::Error::from(r),
-        other => anyhow::Error::from(other),
-    })?;
-    print!("{}", std::fs::read_to_string(&report.markdown)?);
+    let report = bench::run(ctx.clone(), &plan, &args.out, true)?;
+    print!("{}", read_report(&report.markdown).map_err(input)?);
     eprintln!(
         "wrote {}, {} and {}",
         report.markdown.display(),
@@ -278,9 +324,13 @@ fn bench(args: &BenchArgs) -> Result<()> {
         report.plot.display()
     );
     if ctx.validation_errors() > 0 {
-        bail!("{} Vulkan validation errors were reported", ctx.validation_errors());
+        return Err(BenchValidationFailed(ctx.validation_errors()).into());
     }
     Ok(())
+}
+
+fn read_report(path: &std::path::Path) -> anyhow::Result<String> {
+    std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))
 }
 
 #[derive(clap::Args)]
@@ -358,7 +408,7 @@ fn run(cli: Cli) -> Result<()> {
     match command {
         Command::Render(args) => render(&args),
         Command::Bench(args) => bench(&args),
-        Command::View(args) => caustica::app::run(&args),
+        Command::View(args) => Ok(caustica::app::run(&args)?),
         Command::Info(args) => info(&args),
         Command::Scenes => {
             for name in BUILTIN_SCENES {
@@ -395,7 +445,9 @@ fn run(cli: Cli) -> Result<()> {
             raw,
         } => {
             let vol = volume::procedural::generate(&name, resolution)?;
-            volume::nrrd::write_nrrd(&output, &vol, !raw).with_context(|| format!("writing {}", output.display()))?;
+            volume::nrrd::write_nrrd(&output, &vol, !raw)
+                .with_context(|| format!("writing {}", output.display()))
+                .map_err(input)?;
             eprintln!(
                 "wrote {} ({}×{}×{})",
                 output.display(),
@@ -408,33 +460,22 @@ fn run(cli: Cli) -> Result<()> {
     }
 }
 
-fn exit_code(err: &anyhow::Error) -> u8 {
-    if err.downcast_ref::<ValidationFailed>().is_some() || err.downcast_ref::<InvalidImage>().is_some() {
-        return EXIT_GPU;
+/// Reports a failure and ends the process with its class's code (README, "Errors and exit
+/// codes"); after a hang at once, without exit handlers.
+fn exit(failure: Failure) -> ExitCode {
+    eprintln!("error: {:#}", failure.error);
+    let code = failure.class.code();
+    if failure.class == ExitClass::GpuHung {
+        exit_now(code);
     }
-    let gpu = err
-        .downcast_ref::<GpuError>()
-        .or_else(|| match err.downcast_ref::<RenderError>() {
-            Some(RenderError::Gpu(g)) => Some(g),
-            _ => None,
-        });
-    match gpu {
-        Some(GpuError::NoLoader(_) | GpuError::NoDevice(_) | GpuError::DeviceNotFound { .. }) => EXIT_NO_VULKAN,
-        Some(_) => EXIT_GPU,
-        None => EXIT_INPUT,
-    }
-}
-
-fn is_hang(err: &anyhow::Error) -> bool {
-    matches!(
-        err.downcast_ref::<RenderError>(),
-        Some(RenderError::Gpu(GpuError::Timeout { .. }))
-    ) || matches!(err.downcast_ref::<GpuError>(), Some(GpuError::Timeout { .. }))
+    ExitCode::from(code)
 }
 
 /// Exits without running the C library's exit handlers: after a device hang the driver may
 /// still be executing the abandoned work, and tearing the driver down under it can crash or
-/// block. stderr is unbuffered, so the message is already out.
+/// block. stderr is unbuffered, so the message is already out. The crate's one `unsafe` outside
+/// `gpu` (Cargo.toml denies it elsewhere).
+#[allow(unsafe_code)]
 fn exit_now(code: u8) -> ! {
     #[cfg(unix)]
     // SAFETY: _exit only ends the process; no Rust state needs to outlive it.
@@ -469,13 +510,39 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
-        Err(err) => {
-            eprintln!("error: {err:#}");
-            let code = exit_code(&err);
-            if is_hang(&err) {
-                exit_now(code);
-            }
-            ExitCode::from(code)
-        }
+        Err(failure) => exit(failure),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use caustica::app::ViewError;
+    use caustica::gpu::GpuError;
+    use caustica::input::InputError;
+    use caustica::render::RenderError;
+
+    /// What `?` makes of an error is what the process exits with.
+    fn fail(error: impl Classify + std::error::Error + Send + Sync + 'static) -> Result<()> {
+        Err(error)?
+    }
+
+    /// A GPU failure while the viewer handles its input (loading and rendering a frame on its
+    /// render thread) reaches `main` wrapped in the viewer's error, and still exits 4.
+    #[test]
+    fn a_gpu_failure_during_input_handling_exits_4() {
+        let lost = GpuError::DeviceLost { call: "vkQueueSubmit" };
+        let failure = fail(ViewError::Render(RenderError::Gpu(lost))).unwrap_err();
+        assert_eq!(failure.class.code(), 4, "{:#}", failure.error);
+        assert!(
+            failure.error.to_string().contains("device was lost"),
+            "{:#}",
+            failure.error
+        );
+        let hung = GpuError::Timeout { seconds: 120 };
+        let failure = fail(ViewError::Render(RenderError::Gpu(hung))).unwrap_err();
+        assert_eq!(failure.class, ExitClass::GpuHung, "ends at once (_exit)");
+        let failure = fail(ViewError::Input(InputError::Missing)).unwrap_err();
+        assert_eq!(failure.class.code(), 1);
     }
 }

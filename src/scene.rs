@@ -1,5 +1,8 @@
 //! Everything one image depends on: volume source, transfer functions, camera, light, clip
 //! plane, environment and quality. Scenes are TOML files (see README) or built in ([`builtin`]).
+//! Also the GPU-free pieces the renderer and the CPU reference share: the view setup
+//! ([`view`]), the scene with its data loaded ([`PreparedScene`]), environment maps and the
+//! rendered image.
 
 use std::path::{Path, PathBuf};
 
@@ -10,7 +13,15 @@ use crate::volume::series::Series;
 use crate::volume::{self, raw::RawDesc, Format, Loaded, Volume, VolumeError, VolumeMeta};
 
 mod builtin;
+pub mod environment;
+pub mod image;
+mod prepared;
+pub mod view;
 pub use builtin::{builtin, BuiltinScene, BUILTIN_SCENES};
+pub use environment::{srgb_to_linear, EnvError, EnvMap};
+pub use image::{linear_to_srgb, OutputError, RenderedImage};
+pub use prepared::{PrepareError, PreparedScene, VolumeInfo};
+pub use view::{camera_position, light_direction, ViewSetup};
 
 /// The largest light angle off the view direction. The planes are parallel to the image, so
 /// light at 90° would travel inside one plane and never reach the next: the backward lookup
@@ -29,6 +40,16 @@ pub enum SceneError {
     Volume(#[from] VolumeError),
     #[error(transparent)]
     Transfer(#[from] TransferError),
+}
+
+impl crate::Classify for SceneError {
+    fn exit_class(&self) -> crate::ExitClass {
+        match self {
+            SceneError::Io { .. } | SceneError::Parse { .. } | SceneError::Invalid(_) => crate::ExitClass::Input,
+            SceneError::Volume(e) => e.exit_class(),
+            SceneError::Transfer(e) => e.exit_class(),
+        }
+    }
 }
 
 /// Where the volume comes from.
@@ -186,7 +207,7 @@ pub struct Light {
 
 /// Largest light colour × intensity: the light buffers hold 16-bit floats (max 65504), and
 /// caustics concentrate light by up to `quality.max_concentration` before the per-texel clamp
-/// (`render::MAX_LIGHT_VALUE`, the same number) applies.
+/// (`scene::view::MAX_LIGHT_VALUE`, the same number) applies.
 pub const MAX_LIGHT_RADIANCE: f32 = 16384.0;
 
 /// Largest `quality.max_concentration`: beyond this the light clamp (`MAX_LIGHT_VALUE`) is

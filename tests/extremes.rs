@@ -32,7 +32,7 @@ const ROUNDING: f32 = 1.01;
 fn diffuse_bound(p: &PreparedScene, background_max: f32) -> f32 {
     let l = &p.scene.light;
     let source = l.color.iter().fold(0.0f32, |m, c| m.max(c * l.intensity));
-    let light = (source * p.scene.quality.max_concentration).min(MAX_LIGHT_VALUE);
+    let light = (source * p.scene.quality.max_concentration()).min(MAX_LIGHT_VALUE);
     light * ROUNDING + background_max
 }
 
@@ -429,7 +429,7 @@ pub fn focus_scene(max_concentration: f32) -> PreparedScene {
     let mut scene = head_on_scene(&tf);
     scene.light.polar_deg = 0.0;
     scene.shading.specular = 0.0;
-    scene.quality.max_concentration = max_concentration;
+    scene.quality.max_concentration = Some(max_concentration);
     // Ratio clamp relaxed: the budget alone must hold the light.
     scene.quality.max_intensity_ratio = 16.0;
     prepared(scene, volume, tf)
@@ -553,7 +553,7 @@ fn safeguard_concentration_bounds_light_behind_a_focus() {
     // Budget 64: measured without it 336 at the back of the box.
     let mut gpu = Gpu::new();
     let p = head_on(ball_scene(3.0, hard_ball(N, 0.3), false));
-    let budget = p.scene.quality.max_concentration * ROUNDING;
+    let budget = p.scene.quality.max_concentration() * ROUNDING;
     let on = light_at(&mut gpu, &p, 1.0, 0).max_value();
     let off = light_at(&mut gpu, &p, 1.0, safeguards::CONCENTRATION).max_value();
     eprintln!("CONCENTRATION: light max {on} (on), {off} (off), budget {budget}");

@@ -3,54 +3,59 @@
 
 mod common;
 
-use caustica::gpu::ComputePipeline;
-use caustica::render::shaders::{bindings, Pass};
-use caustica::render::{DebugView, Features, Immediates};
+use caustica::gpu::{BindingKind, ComputePipeline};
+use caustica::render::shaders::Pass;
+use caustica::render::{DebugView, Features};
 use caustica::scene::Precision;
+
+const DEBUG_VIEWS: [DebugView; 5] = [
+    DebugView::Image,
+    DebugView::Light,
+    DebugView::LightDirection,
+    DebugView::Intensity,
+    DebugView::Medium,
+];
 
 #[test]
 fn every_variant_compiles_and_validates() {
+    // Every feature combination (both transports) at both precisions for the image, and every
+    // diagnostic view of each: 3 passes × 256 × (2 + 4) variants.
     let mut count = 0;
     for pass in Pass::ALL {
-        let source = pass.parse(Precision::F16).unwrap_or_else(|e| panic!("{e}"));
-        let debug_views: &[DebugView] = if pass == Pass::Finish {
-            &[
-                DebugView::Image,
-                DebugView::Light,
-                DebugView::LightDirection,
-                DebugView::Intensity,
-                DebugView::Medium,
-            ]
-        } else {
-            &[DebugView::Image]
-        };
+        let source = pass.parse().unwrap_or_else(|e| panic!("{e}"));
         for features in Features::all_combinations() {
-            for debug in debug_views {
-                let spirv = source
-                    .specialise("main", &features.constants(*debug))
-                    .unwrap_or_else(|e| panic!("{:?} {features:?} {debug:?}: {e}", pass));
+            let mut variants = vec![(DebugView::Image, Precision::F32)];
+            variants.extend(DEBUG_VIEWS.iter().map(|d| (*d, Precision::F16)));
+            for (debug, precision) in variants {
+                let compiled = source
+                    .specialise("main", &features.constants(debug, precision))
+                    .unwrap_or_else(|e| panic!("{:?} {features:?} {debug:?} {precision:?}: {e}", pass));
+                let spirv = &compiled.spirv;
                 assert!(spirv.len() > 100 && spirv[0] == 0x0723_0203, "not SPIR-V");
                 count += 1;
             }
         }
     }
-    assert_eq!(count, 256 * 7);
+    assert_eq!(count, 3 * 256 * 6);
 }
 
 #[test]
-fn full_precision_variants_compile_with_32_bit_storage() {
+fn every_binding_is_a_storage_buffer_or_a_scene_texture() {
+    // The state lives in storage buffers so that no shader reads a uniform or push-constant
+    // value in a branch (lavapipe recompiles such shaders whenever the value changes: once per
+    // plane). The only uniform-like block is the immediates, read through `dispatch_plane`.
     for pass in Pass::ALL {
-        let source = pass.source(Precision::F32);
-        assert!(
-            !source.contains("rgba16float"),
-            "{pass:?} still declares 16-bit storage"
-        );
-        let parsed = pass.parse(Precision::F32).unwrap_or_else(|e| panic!("{e}"));
-        for features in Features::all_combinations().into_iter().step_by(17) {
-            parsed
-                .specialise("main", &features.constants(DebugView::Image))
-                .unwrap_or_else(|e| panic!("{pass:?} {features:?}: {e}"));
+        let source = pass.parse().unwrap();
+        for b in &source.layout().bindings {
+            assert!(
+                !matches!(b.kind, BindingKind::UniformBuffer),
+                "{pass:?}: {} is a uniform buffer",
+                b.name
+            );
         }
+        let text = pass.source();
+        let direct = text.matches("I.plane_index").count();
+        assert_eq!(direct, 1, "{pass:?}: the plane index is read outside dispatch_plane");
     }
 }
 
@@ -59,12 +64,12 @@ fn every_override_is_set_by_features() {
     // A new `override` in the WGSL that `Features::constants` does not set would silently keep
     // its default in every variant.
     let names: Vec<&str> = Features::default()
-        .constants(DebugView::Image)
+        .constants(DebugView::Image, Precision::F16)
         .iter()
         .map(|(n, _)| *n)
         .collect();
     for pass in Pass::ALL {
-        for o in pass.parse(Precision::F16).unwrap().override_names() {
+        for o in pass.parse().unwrap().override_names() {
             assert!(names.contains(&o.as_str()), "override {o} of {:?} is not set", pass);
         }
     }
@@ -83,8 +88,11 @@ fn representative_variants_build_on_the_device() {
         eta_volume: true,
         orthographic: false,
         gradient: caustica::scene::Gradient::Central,
+        transport: caustica::scene::LightTransport::Beams,
     };
-    let mut variants = vec![Features::default(), all];
+    let mut backward = all;
+    backward.transport = caustica::scene::LightTransport::Backward;
+    let mut variants = vec![Features::default(), all, backward];
     for i in 0..9 {
         let mut f = Features::default();
         match i {
@@ -98,7 +106,7 @@ fn representative_variants_build_on_the_device() {
             7 => f.orthographic = true,
             _ => {
                 f.refraction = true;
-                f.gradient = caustica::scene::Gradient::Forward;
+                f.transport = caustica::scene::LightTransport::Backward;
             }
         }
         variants.push(f);
@@ -107,23 +115,18 @@ fn representative_variants_build_on_the_device() {
         .into_iter()
         .flat_map(|p| [(p, Precision::F16), (p, Precision::F32)])
     {
-        let source = pass.parse(precision).unwrap();
+        let source = pass.parse().unwrap();
         let variants = if precision == Precision::F16 {
             &variants[..]
         } else {
-            &variants[..2]
+            &variants[..3]
         };
         for f in variants {
-            let spirv = source.specialise("main", &f.constants(DebugView::Image)).unwrap();
-            ComputePipeline::new(
-                &gpu.ctx,
-                "variant check",
-                &spirv,
-                "main",
-                &bindings(),
-                std::mem::size_of::<Immediates>() as u32,
-            )
-            .unwrap_or_else(|e| panic!("{pass:?} {precision:?} {f:?}: {e}"));
+            let compiled = source
+                .specialise("main", &f.constants(DebugView::Image, precision))
+                .unwrap();
+            ComputePipeline::new(&gpu.ctx, "variant check", &compiled)
+                .unwrap_or_else(|e| panic!("{pass:?} {precision:?} {f:?}: {e}"));
         }
     }
     gpu.assert_clean();

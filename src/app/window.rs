@@ -19,6 +19,7 @@ use super::panel::{Action, ViewState};
 use super::progressive::{Progressive, FULL, LEVELS};
 use super::raster::{Painter, Target};
 use super::worker::{Reply, Request, Worker};
+use super::ViewError;
 use crate::render::{linear_to_srgb, RenderedImage};
 use crate::scene::Scene;
 
@@ -83,7 +84,7 @@ pub struct App {
     cancel: Arc<AtomicBool>,
     /// The viewport has no pixels (minimised): nothing to render, so nothing to wait for.
     no_viewport: bool,
-    pub error: Option<anyhow::Error>,
+    pub error: Option<ViewError>,
     /// The view version whose settled frame was last written (--screenshot, --save-scene).
     written_version: u64,
 }
@@ -116,8 +117,8 @@ impl App {
         self.surface = None;
     }
 
-    fn fail(&mut self, event_loop: &ActiveEventLoop, e: anyhow::Error) {
-        self.error.get_or_insert(e);
+    fn fail(&mut self, event_loop: &ActiveEventLoop, e: impl Into<ViewError>) {
+        self.error.get_or_insert(e.into());
         event_loop.exit();
     }
 
@@ -165,14 +166,14 @@ impl App {
                 Reply::Cancelled { job } => {
                     self.progressive.finished(job, false);
                 }
-                Reply::Failed { job, message } => {
+                Reply::Failed { job, message, class } => {
                     if let Some(job) = job {
                         self.progressive.finished(job, false);
                     }
                     self.state.status.message = message.clone();
                     // Without a picture the exit-after-idle run can never settle: stop.
                     if self.opts.exit_after_idle {
-                        self.error.get_or_insert(anyhow!("render failed: {message}"));
+                        self.error.get_or_insert(ViewError::Frame { message, class });
                     }
                 }
                 Reply::Volume { frame, histogram } => {

@@ -1,7 +1,7 @@
-//! The WGSL sources (embedded from `shaders/`), their passes and bindings.
+//! The WGSL sources (embedded from `shaders/`) and their passes. Bindings, the immediate block
+//! and workgroup sizes are read from the parsed modules (`gpu::ShaderLayout`), not kept here.
 
-use crate::gpu::shader::ShaderSource;
-use crate::gpu::{Binding, BindingKind, GpuError};
+use crate::gpu::{GpuError, ShaderSource};
 
 pub const COMMON: &str = include_str!("../../shaders/common.wgsl");
 pub const OPTICS: &str = include_str!("../../shaders/optics.wgsl");
@@ -56,55 +56,6 @@ impl Pass {
         ShaderSource::parse(self.file(), &self.source())
     }
 
-    /// Workgroups per dispatch are counted in tiles of 8×8 invocations.
+    /// Invocations per workgroup side of the 64-invocation tiles the passes work in.
     pub const TILE: u32 = 8;
-}
-
-/// Binding slots, as declared in `shaders/common.wgsl`.
-pub mod slot {
-    pub const PARAMS: u32 = 0;
-    pub const VOLUME: u32 = 1;
-    pub const LINEAR_CLAMP: u32 = 2;
-    pub const VOLUME_SAMPLER: u32 = 3;
-    pub const GRADIENT: u32 = 4;
-    pub const PARTICLE_TABLE: u32 = 5;
-    pub const MEDIUM_TABLE: u32 = 6;
-    pub const VIEW_LIGHT: u32 = 7;
-    pub const ENV: u32 = 8;
-    pub const ENV_SAMPLER: u32 = 9;
-    pub const VIEW_RAY: u32 = 10;
-    pub const VIEW_AUX: u32 = 11;
-    pub const VIEW_COLOR: u32 = 12;
-    pub const VIEW_MEDIUM: u32 = 13;
-    pub const BEAM_POS: u32 = 14;
-    pub const BEAM_AUX: u32 = 15;
-    pub const BEAM_POWER: u32 = 16;
-    pub const LIGHT_ACC: u32 = 17;
-    pub const BACK_LIGHT: u32 = 18;
-    pub const BACK_DIR: u32 = 19;
-    pub const IMAGE_OUT: u32 = 20;
-}
-
-pub fn bindings() -> Vec<Binding> {
-    use BindingKind::*;
-    let kinds = [
-        (slot::PARAMS, StorageBuffer),
-        (slot::VOLUME, SampledImage),
-        (slot::LINEAR_CLAMP, Sampler),
-        (slot::VOLUME_SAMPLER, Sampler),
-        (slot::GRADIENT, SampledImage),
-        (slot::PARTICLE_TABLE, SampledImage),
-        (slot::MEDIUM_TABLE, SampledImage),
-        (slot::VIEW_LIGHT, StorageBuffer),
-        (slot::ENV, SampledImage),
-        (slot::ENV_SAMPLER, Sampler),
-    ];
-    let mut b: Vec<Binding> = kinds.iter().map(|&(index, kind)| Binding { index, kind }).collect();
-    for index in slot::VIEW_RAY..=slot::IMAGE_OUT {
-        b.push(Binding {
-            index,
-            kind: StorageBuffer,
-        });
-    }
-    b
 }

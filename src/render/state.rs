@@ -13,8 +13,8 @@ use glam::Mat4;
 
 use crate::gpu::{Buffer, ComputePipeline, Context, DescriptorSet, GpuError, Recorder, Resource, Timestamps};
 
-use super::geometry::{light_direction, BeamGrid, ViewSetup, MAX_LIGHT_VALUE, MIN_LIGHT_DIR_Z, MIN_VIEW_DIR_Z};
-use super::shaders::{slot, Pass};
+use crate::scene::view::{light_direction, BeamGrid, ViewSetup, MAX_LIGHT_VALUE, MIN_LIGHT_DIR_Z, MIN_VIEW_DIR_Z};
+use super::shaders::Pass;
 use super::upload::{CachedTextures, SceneTextures, TexturesKey};
 use super::{
     background, DebugView, Features, Immediates, Params, PreparedScene, RenderError, RenderOutput, RenderRequest,
@@ -168,9 +168,11 @@ fn progress_bar(show: bool, planes: u64) -> Option<indicatif::ProgressBar> {
     Some(bar)
 }
 
-/// The state buffers of one render; those the scene does not need are 16-byte placeholders.
+/// The state buffers of one render, by binding name (`shaders/common.wgsl`); those the scene
+/// does not need are 16-byte placeholders.
 struct State {
-    buffers: Vec<(u32, Buffer)>,
+    buffers: Vec<(&'static str, Buffer)>,
+    /// Bytes of the buffers the scene needs (the image excluded).
     bytes: u64,
 }
 
@@ -191,43 +193,38 @@ impl State {
         let beams = features.transport == LightTransport::Beams;
         let refraction = features.refraction;
         let back_dir = !beams && (refraction || features.intensity_correction);
-        let sizes: [(u32, &str, u64, bool); 13] = [
-            (slot::VIEW_LIGHT, "view light", pixels * rgba, true),
-            (slot::VIEW_RAY, "view rays", pixels * 16, refraction),
-            (slot::VIEW_AUX, "view aux", pixels * 16, true),
-            (slot::VIEW_COLOR, "view colour", pixels * rgba, true),
-            (slot::VIEW_MEDIUM, "view medium", pixels * rgba, features.medium),
-            (slot::BEAM_POS, "beam positions", 2 * cells * 16, beams && refraction),
-            (slot::BEAM_AUX, "beam aux", 2 * cells * 16, beams),
-            (slot::BEAM_POWER, "beam power", 2 * cells * rgba, beams),
-            (
-                slot::LIGHT_ACC,
-                "deposited light",
-                LIGHT_RING * pixels * layout.channels as u64 * 4,
-                beams,
-            ),
-            (slot::BACK_LIGHT, "light grid", LIGHT_RING * cells * rgba, !beams),
-            (slot::BACK_DIR, "light grid directions", LIGHT_RING * cells * 16, back_dir),
-            (slot::IMAGE_OUT, "image", pixels * 16, true),
-            (slot::PARAMS, "", 0, false), // placeholder entry, replaced by the params buffer
+        let sizes: [(&str, u64, bool); 12] = [
+            ("view_light", pixels * rgba, true),
+            ("view_ray", pixels * 16, refraction),
+            ("view_aux", pixels * 16, true),
+            ("view_color", pixels * rgba, true),
+            ("view_medium", pixels * rgba, features.medium),
+            ("beam_pos", 2 * cells * 16, beams && refraction),
+            ("beam_aux", 2 * cells * 16, beams),
+            ("beam_power", 2 * cells * rgba, beams),
+            ("light_acc", LIGHT_RING * pixels * layout.channels as u64 * 4, beams),
+            ("back_light", LIGHT_RING * cells * rgba, !beams),
+            ("back_dir", LIGHT_RING * cells * 16, back_dir),
+            ("image_out", pixels * 16, true),
         ];
         let mut buffers = Vec::new();
         let mut bytes = 0;
-        for (index, label, size, needed) in sizes {
-            if index == slot::PARAMS {
-                continue;
-            }
+        for (name, size, needed) in sizes {
             let size = if needed { size.max(16) } else { 16 };
-            if needed && index != slot::IMAGE_OUT {
+            if needed && name != "image_out" {
                 bytes += size;
             }
-            buffers.push((index, Buffer::new_device(ctx, label, size)?));
+            buffers.push((name, Buffer::new_storage(ctx, name, size)?));
         }
         Ok(State { buffers, bytes })
     }
 
-    fn get(&self, index: u32) -> Option<&Buffer> {
-        self.buffers.iter().find(|(i, _)| *i == index).map(|(_, b)| b)
+    fn get(&self, name: &str) -> Result<&Buffer, RenderError> {
+        self.buffers
+            .iter()
+            .find(|(n, _)| *n == name)
+            .map(|(_, b)| b)
+            .ok_or_else(|| RenderError::Setup(format!("internal: no state buffer {name}")))
     }
 }
 
@@ -258,20 +255,19 @@ pub(super) fn run(
     let grid = view.beam_grid(light_direction(&scene.light), scene.quality.beams_per_texel);
     let layout = Layout::new(&view, grid, light_channels(&features, req.debug_view));
 
-    let mut rec = Recorder::new(ctx, "render: upload and init")?;
     let window = prepared.window();
     // Scene textures are kept between renders while what they hold is unchanged (an
     // interactive view changes mostly the camera and light).
     let key = TexturesKey::new(prepared, &features);
+    let mut pending = None;
     if !cache.as_ref().is_some_and(|c| c.matches(&key)) {
         *cache = None; // free the old textures before allocating new ones
         let eta_source = match (&prepared.eta_volume, features.eta_volume) {
             (Some(v), true) => Some((v.as_ref(), v.value_range)),
             _ => None,
         };
-        let textures = SceneTextures::upload(
+        let (textures, upload) = SceneTextures::upload(
             ctx,
-            &mut rec,
             vol,
             window,
             features.refraction.then_some((eta_source, features.gradient)),
@@ -280,9 +276,10 @@ pub(super) fn run(
             prepared.env.as_ref(),
         )?;
         *cache = Some(CachedTextures::new(key, textures));
+        pending = Some(upload);
     }
     let cached = cache
-        .as_mut()
+        .as_ref()
         .ok_or_else(|| RenderError::Setup("internal: scene textures missing".into()))?;
 
     let mut params = Buffer::new_upload(
@@ -298,32 +295,38 @@ pub(super) fn run(
         cached.textures.env_levels,
     )))?;
     let state = State::new(ctx, &view, &layout, &features, precision)?;
-    let acc = state
-        .get(slot::LIGHT_ACC)
-        .ok_or_else(|| RenderError::Setup("internal: light buffer missing".into()))?;
-    rec.fill(acc, 0);
+    let bytes = w as u64 * h as u64 * 16;
+    let mut readback = Buffer::new_readback(ctx, "output readback", bytes)?;
+    let ts = Timestamps::new(ctx, 2)?;
 
     let mut sets = Vec::new();
     for p in pipelines {
-        let set = DescriptorSet::new(ctx, p, &p.label)?;
+        let mut set = DescriptorSet::new(ctx, p, &p.label)?;
         let t = &cached.textures;
         let mut writes = vec![
-            (slot::PARAMS, Resource::Buffer(&params)),
-            (slot::VOLUME, Resource::Image(&t.volume)),
-            (slot::LINEAR_CLAMP, Resource::Sampler(&t.linear_clamp)),
-            (slot::VOLUME_SAMPLER, Resource::Sampler(&t.volume_sampler)),
-            (slot::GRADIENT, Resource::Image(&t.gradient)),
-            (slot::PARTICLE_TABLE, Resource::Image(&t.particle_table)),
-            (slot::MEDIUM_TABLE, Resource::Image(&t.medium_table)),
-            (slot::ENV, Resource::Image(&t.env)),
-            (slot::ENV_SAMPLER, Resource::Sampler(&t.env_sampler)),
+            ("P", Resource::Buffer(&params)),
+            ("volume_tex", Resource::Image(&t.volume)),
+            ("linear_clamp", Resource::Sampler(&t.linear_clamp)),
+            ("volume_sampler", Resource::Sampler(&t.volume_sampler)),
+            ("gradient_tex", Resource::Image(&t.gradient)),
+            ("particle_table", Resource::Image(&t.particle_table)),
+            ("medium_table", Resource::Image(&t.medium_table)),
+            ("env_tex", Resource::Image(&t.env)),
+            ("env_sampler", Resource::Sampler(&t.env_sampler)),
         ];
-        for (index, buffer) in &state.buffers {
-            writes.push((*index, Resource::Buffer(buffer)));
+        for (name, buffer) in &state.buffers {
+            writes.push((*name, Resource::Buffer(buffer)));
         }
         set.write(&writes)?;
         sets.push(set);
     }
+
+    // Everything the commands use is created above: the recorders borrow it.
+    let mut rec = Recorder::new(ctx, "render: upload and init")?;
+    if let Some(upload) = pending {
+        cached.textures.record_upload(&mut rec, upload);
+    }
+    rec.fill(state.get("light_acc")?, 0);
     let sweep_groups = [layout.groups_per_row, layout.rows, 1];
     let finish_groups = [tiles(w), tiles(h), 1];
     let texels_per_plane = (layout.grid.count() + view.rect.width() as u64 * view.rect.height() as u64).max(1);
@@ -334,7 +337,7 @@ pub(super) fn run(
         pad: [0; 2],
     };
 
-    rec.dispatch(&pipelines[0], &sets[0], bytemuck::bytes_of(&push(0)), sweep_groups);
+    rec.dispatch(&pipelines[0], &sets[0], bytemuck::bytes_of(&push(0)), sweep_groups)?;
     rec.compute_to_compute();
     // Dispatch k moves the light to plane k and the view rays to plane k-1: the image needs
     // one dispatch more than there are planes, the light diagnostics stop at their plane.
@@ -364,34 +367,25 @@ pub(super) fn run(
             Some(r) => r,
             None => Recorder::new(ctx, "render: planes")?,
         };
-        let ts = Timestamps::new(ctx, 2)?;
         r.reset_timestamps(&ts);
         r.timestamp(&ts, 0);
         let end = (plane + chunk).min(dispatches + 1);
         while plane < end {
-            r.dispatch(&pipelines[1], &sets[1], bytemuck::bytes_of(&push(plane)), sweep_groups);
+            r.dispatch(&pipelines[1], &sets[1], bytemuck::bytes_of(&push(plane)), sweep_groups)?;
             r.compute_to_compute();
             plane += 1;
         }
         let last = plane > dispatches;
-        let readback = if last {
+        if last {
             r.dispatch(
                 &pipelines[2],
                 &sets[2],
                 bytemuck::bytes_of(&push(planes_run - 1)),
                 finish_groups,
-            );
+            )?;
             r.compute_to_transfer();
-            let image = state
-                .get(slot::IMAGE_OUT)
-                .ok_or_else(|| RenderError::Setup("internal: image buffer missing".into()))?;
-            let bytes = w as u64 * h as u64 * 16;
-            let buf = Buffer::new_readback(ctx, "output readback", bytes)?;
-            r.copy_buffer(image, &buf, bytes);
-            Some(buf)
-        } else {
-            None
-        };
+            r.copy_buffer(state.get("image_out")?, &mut readback, bytes);
+        }
         r.timestamp(&ts, 1);
         r.submit_and_wait()?;
         cached.uploaded();
@@ -399,11 +393,11 @@ pub(super) fn run(
         if let Some(b) = &bar {
             b.set_position((plane - 1) as u64);
         }
-        if let Some(buf) = readback {
+        if last {
             if let Some(b) = bar {
                 b.finish_and_clear();
             }
-            let bytes = buf.read()?;
+            let bytes = readback.read()?;
             let pixels: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(bytes);
             return Ok(RenderOutput {
                 image: RenderedImage {
