@@ -550,7 +550,8 @@ impl Scene {
                 return bad(format!("quality.max_concentration must be in [1, {MAX_CONCENTRATION}]"));
             }
         }
-        if !(q.beams_per_texel.is_finite() && (MIN_BEAMS_PER_TEXEL..=MAX_BEAMS_PER_TEXEL).contains(&q.beams_per_texel)) {
+        if !(q.beams_per_texel.is_finite() && (MIN_BEAMS_PER_TEXEL..=MAX_BEAMS_PER_TEXEL).contains(&q.beams_per_texel))
+        {
             return bad(format!(
                 "quality.beams_per_texel {} must be in [{MIN_BEAMS_PER_TEXEL}, {MAX_BEAMS_PER_TEXEL}]",
                 q.beams_per_texel

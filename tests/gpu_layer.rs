@@ -7,7 +7,9 @@
 
 mod common;
 
-use caustica::gpu::{Buffer, ComputePipeline, DescriptorSet, Format, Image, ImageDesc, Recorder, Resource, ShaderSource};
+use caustica::gpu::{
+    Buffer, ComputePipeline, DescriptorSet, Format, Image, ImageDesc, Recorder, Resource, ShaderSource,
+};
 use caustica::render::shaders::Pass;
 use caustica::render::{DebugView, Features, Immediates};
 use caustica::scene::Precision;

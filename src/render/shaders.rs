@@ -45,9 +45,16 @@ impl Pass {
         if let Some(dir) = std::env::var_os("CAUSTICA_SHADER_DIR") {
             let dir = std::path::PathBuf::from(dir);
             let read = |name: &str| std::fs::read_to_string(dir.join(name)).unwrap_or_default();
-            return ["common.wgsl", "optics.wgsl", "beams.wgsl", "backward.wgsl", "view.wgsl", self.file()]
-                .map(read)
-                .join("\n");
+            return [
+                "common.wgsl",
+                "optics.wgsl",
+                "beams.wgsl",
+                "backward.wgsl",
+                "view.wgsl",
+                self.file(),
+            ]
+            .map(read)
+            .join("\n");
         }
         format!("{COMMON}\n{OPTICS}\n{BEAMS}\n{BACKWARD}\n{VIEW}\n{}", self.body())
     }

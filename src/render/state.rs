@@ -13,13 +13,13 @@ use glam::Mat4;
 
 use crate::gpu::{Buffer, ComputePipeline, Context, DescriptorSet, GpuError, Recorder, Resource, Timestamps};
 
-use crate::scene::view::{light_direction, BeamGrid, ViewSetup, MAX_LIGHT_VALUE, MIN_LIGHT_DIR_Z, MIN_VIEW_DIR_Z};
 use super::shaders::Pass;
 use super::upload::{CachedTextures, SceneTextures, TexturesKey};
 use super::{
     background, DebugView, Features, Immediates, Params, PreparedScene, RenderError, RenderOutput, RenderRequest,
     RenderStats, RenderedImage,
 };
+use crate::scene::view::{light_direction, BeamGrid, ViewSetup, MAX_LIGHT_VALUE, MIN_LIGHT_DIR_Z, MIN_VIEW_DIR_Z};
 use crate::scene::{LightTransport, Precision};
 
 /// Planes recorded per submission at most: keeps each submission short (progress,
@@ -153,7 +153,12 @@ fn make_params(prepared: &PreparedScene, view: &ViewSetup, layout: &Layout, env_
         beam_origin: [g.x0, g.y0, g.stride, g.stride * g.stride],
         beam_grid: [g.width, g.height, tiles(g.width), layout.beam_groups],
         rect: [r.x0, r.y0, r.x1, r.y1],
-        tiles: [layout.view_tiles_x, layout.view_groups, layout.groups_per_row, layout.channels],
+        tiles: [
+            layout.view_tiles_x,
+            layout.view_groups,
+            layout.groups_per_row,
+            layout.channels,
+        ],
     }
 }
 

@@ -67,6 +67,10 @@ fn volume_image(ctx: &Arc<Context>, label: &str, vol: &Volume) -> Result<Image, 
     Image::new(ctx, ImageDesc::sampled(label, Format::R16_UNORM, extent, true, 1))
 }
 
+/// Where the gradient volume's η comes from: a separate η volume with its value range (else
+/// the volume itself), and the difference scheme.
+pub type EtaSource<'a> = (Option<(&'a Volume, [f32; 2])>, Gradient);
+
 impl SceneTextures {
     /// Creates the textures and stages their contents; [`SceneTextures::record_upload`]
     /// copies them in. `refraction`: the η source (the η volume with its value range, or the
@@ -76,7 +80,7 @@ impl SceneTextures {
         ctx: &Arc<Context>,
         volume: &Volume,
         window: [f32; 2],
-        refraction: Option<(Option<(&Volume, [f32; 2])>, Gradient)>,
+        refraction: Option<EtaSource<'_>>,
         tf: &TransferFunctions,
         sample_distance: f32,
         env: Option<&EnvMap>,
@@ -95,7 +99,10 @@ impl SceneTextures {
         let (extent, texels) = match refraction {
             Some((eta_source, scheme)) => {
                 let (dims, g) = match eta_source {
-                    Some((ev, w)) => (ev.dims, gradient_volume(&ev.normalized_u16(w), ev.dims, &tf.eta, scheme)),
+                    Some((ev, w)) => (
+                        ev.dims,
+                        gradient_volume(&ev.normalized_u16(w), ev.dims, &tf.eta, scheme),
+                    ),
                     None => (volume.dims, gradient_volume(&samples, volume.dims, &tf.eta, scheme)),
                 };
                 ([dims[0] as u32, dims[1] as u32, dims[2] as u32], g)
@@ -106,7 +113,10 @@ impl SceneTextures {
             ctx,
             ImageDesc::sampled("gradient volume", Format::R16G16B16A16_SFLOAT, extent, true, 1),
         )?;
-        uploads.push((images.len(), vec![(staging.push(bytemuck::cast_slice(&texels)), extent)]));
+        uploads.push((
+            images.len(),
+            vec![(staging.push(bytemuck::cast_slice(&texels)), extent)],
+        ));
         images.push(img);
 
         let tables = preintegrate(tf, sample_distance);

@@ -201,7 +201,11 @@ impl ViewSetup {
     /// shaders' `project` plus one half.
     pub fn pixel_of(&self, p: Vec3) -> glam::Vec2 {
         let [fx, fy, cx, cy] = self.projection;
-        let xy = if self.perspective { p.truncate() / p.z } else { p.truncate() };
+        let xy = if self.perspective {
+            p.truncate() / p.z
+        } else {
+            p.truncate()
+        };
         glam::Vec2::new(xy.x * fx + cx, xy.y * fy + cy)
     }
 
