@@ -4,23 +4,6 @@
 // that is not refracted maps cell to cell with no resampling blur, and the grid covers the
 // volume's shadow beyond the image (occluders outside the view shadow what is inside it).
 
-fn grid_cells() -> u32 {
-    return P.beam_grid.x * P.beam_grid.y;
-}
-
-// Centre of the cell at continuous cell coordinates `c` (cell (i, j) at c = (i, j)) on the
-// plane at depth z.
-fn grid_point(c: vec2<f32>, z: f32) -> vec3<f32> {
-    let t = P.beam_origin.xy + (c + vec2<f32>(0.5)) * P.beam_origin.z - vec2<f32>(0.5);
-    return unrefracted(unproject(t, P.plane.x), z);
-}
-
-// Continuous cell coordinates of a view-space point (inverse of `grid_point`).
-fn grid_coords(p: vec3<f32>) -> vec2<f32> {
-    let p0 = p - P.light_dir.xyz * ((p.z - P.plane.x) / P.light_dir.z);
-    return (project(p0) + vec2<f32>(0.5) - P.beam_origin.xy) / P.beam_origin.z - vec2<f32>(0.5);
-}
-
 // Area of a cell on any plane (cells are carried along a fixed direction), view units².
 fn cell_area() -> f32 {
     return P.beam_origin.z * P.beam_origin.z * pixel_area(P.plane.x);

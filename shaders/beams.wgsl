@@ -14,9 +14,6 @@ const ACC_SCALE: f32 = 131072.0;
 // Accumulated values at or above this count as saturated (SG_SATURATION): one add is at most
 // ACC_SCALE (a beam carries one plane-0 cell of power), so 2^31 of headroom cannot wrap.
 const ACC_SATURATED: u32 = 2147483648u;
-// Largest footprint edge of one beam, in pixels (SG_FOOTPRINT): a beam spread over more has
-// less than 1/1024 of its power per pixel; beyond it the footprint is clamped.
-const MAX_FOOTPRINT_PIXELS: f32 = 32.0;
 
 // Beams deposit their direction of travel too, for highlights and the direction view.
 fn deposits_direction() -> bool {
@@ -76,73 +73,160 @@ fn drift(pos: vec3<f32>, v: vec3<f32>, z: f32) -> vec3<f32> {
     return pos + d * ((z - pos.z) / d.z);
 }
 
+// Deposited light is a pyramid of ACC_LEVELS levels per plane: level m has texels of 2^m
+// pixels. A beam deposits on the level where its footprint is at most one texel wide, onto
+// the 2 × 2 texels it overlaps, so every beam costs the same whatever it spreads over; the
+// light at a point is the sum of the levels' bilinear lookups.
+const ACC_LEVELS: u32 = 3u;
+
+// Texels of level m (its side: the image's, halved m times, rounded up).
+fn level_size(m: u32) -> vec2<u32> {
+    let s = (vec2<u32>(u32(P.size.x), u32(P.size.y)) + vec2<u32>((1u << m) - 1u)) >> vec2<u32>(m);
+    return s;
+}
+
+// Offset of level m within a plane of the pyramid, in texels.
+fn level_offset(m: u32) -> u32 {
+    var o = 0u;
+    for (var j = 0u; j < m; j++) {
+        let s = level_size(j);
+        o += s.x * s.y;
+    }
+    return o;
+}
+
+// Index of the first channel of texel q of level m of light slot `slot`.
+fn acc_texel(slot: u32, m: u32, q: vec2<u32>) -> u32 {
+    let channels = P.tiles.w;
+    let plane = level_offset(ACC_LEVELS);
+    return ((slot * plane + level_offset(m)) + q.y * level_size(m).x + q.x) * channels;
+}
+
+// Whether texel q of level m covers any pixel of the rect (the only texels cleared and read).
+fn level_texel_in_rect(m: u32, q: vec2<i32>) -> bool {
+    let s = i32(1u << m);
+    let lo = q * s;
+    let hi = lo + vec2<i32>(s);
+    return q.x >= 0 && q.y >= 0 && hi.x > i32(P.rect.x) && hi.y > i32(P.rect.y)
+        && lo.x < i32(P.rect.z) && lo.y < i32(P.rect.w);
+}
+
+fn add_light(texel: u32, amount: vec3<f32>, weight: f32, direction: vec3<f32>, dither: f32) {
+    var n_colour = 1u;
+    if (MEDIUM) {
+        n_colour = 3u;
+    }
+    for (var ch = 0u; ch < n_colour; ch++) {
+        let q = u32(amount[ch] * weight * ACC_SCALE + dither);
+        if (q > 0u) {
+            let old = atomicAdd(&light_acc[texel + ch], q);
+            if (old + q >= ACC_SATURATED && guarded(SG_SATURATION)) {
+                atomicMin(&light_acc[texel + ch], ACC_SATURATED);
+            }
+        }
+    }
+    if (deposits_direction()) {
+        // Power-weighted directions (two's complement) for the highlights.
+        let s = amount[0] * weight * ACC_SCALE;
+        for (var ch = 0u; ch < 3u; ch++) {
+            let q = i32(round(direction[ch] * s));
+            if (q != 0) {
+                atomicAdd(&light_acc[texel + n_colour + ch], bitcast<u32>(q));
+            }
+        }
+    }
+}
+
 // Adds `amount` (relative irradiance × pixels) to light slot `slot` over the axis-aligned box
 // of edges `w` (pixels) centred at `c` (continuous pixel coordinates, pixel u spans
-// [u, u + 1)): each pixel gets the fraction of the box it overlaps, so a box of zero size
-// falls in one pixel (exact binning) and a beam's power is deposited exactly once. Pixels
-// outside the rect of the image that meets the volume are never read and get nothing.
+// [u, u + 1)): each texel of the box's level gets the fraction of the box it overlaps, so a
+// box of zero size falls in one pixel (exact binning) and a beam's power is deposited
+// exactly once. Texels that cover no pixel of the rect (never read) get nothing.
 fn deposit(slot: u32, c: vec2<f32>, w_in: vec2<f32>, amount: vec3<f32>, direction: vec3<f32>, seed: u32) {
     var w = max(w_in, vec2<f32>(1e-4));
+    let widest = max(w.x, w.y);
+    let m = min(u32(max(ceil(log2(max(widest, 1.0))), 0.0)), ACC_LEVELS - 1u);
+    let s = f32(1u << m);
+    var wl = w / s;
     if (guarded(SG_FOOTPRINT)) {
-        w = min(w, vec2<f32>(MAX_FOOTPRINT_PIXELS));
+        // Wider than the coarsest level's texels: concentrated onto one texel's width.
+        wl = min(wl, vec2<f32>(1.0));
     }
-    let lo = c - 0.5 * w;
-    let hi = c + 0.5 * w;
-    let r0 = vec2<f32>(f32(P.rect.x), f32(P.rect.y));
-    let r1 = vec2<f32>(f32(P.rect.z), f32(P.rect.w));
-    let a = max(floor(lo), r0);
-    let b = min(ceil(hi), r1);
-    if (a.x >= b.x || a.y >= b.y) {
-        return;
+    let cl = c / s;
+    let lo = cl - 0.5 * wl;
+    let hi = cl + 0.5 * wl;
+    let q0 = floor(lo);
+    // The box spans at most two texels per axis: the share of the first, the rest the second.
+    let first = clamp((min(hi, q0 + vec2<f32>(1.0)) - lo) / wl, vec2<f32>(0.0), vec2<f32>(1.0));
+    // Level texels hold the light averaged over their s² pixels.
+    let a = amount / (s * s);
+    for (var n = 0u; n < 4u; n++) {
+        let o = vec2<u32>(n & 1u, n >> 1u);
+        let q = vec2<i32>(q0) + vec2<i32>(o);
+        let wx = select(first.x, 1.0 - first.x, o.x == 1u);
+        let wy = select(first.y, 1.0 - first.y, o.y == 1u);
+        let weight = wx * wy;
+        if (weight > 0.0 && level_texel_in_rect(m, q)) {
+            // Unbiased rounding: a deterministic dither per beam and texel.
+            let h = hash(seed ^ (u32(q.x) * 73856093u) ^ (u32(q.y) * 19349663u));
+            add_light(acc_texel(slot, m, vec2<u32>(q)), a, weight, direction, f32(h & 0xffffu) / 65536.0);
+        }
     }
+}
+
+// Light and direction sums at texel q of level m of light slot `slot` (0 beyond the rect).
+fn acc_load(slot: u32, m: u32, q: vec2<i32>) -> LightSample {
+    if (!level_texel_in_rect(m, q)) {
+        return LightSample(vec3<f32>(0.0), vec3<f32>(0.0));
+    }
+    let texel = acc_texel(slot, m, vec2<u32>(q));
+    var c = vec3<f32>(f32(min(atomicLoad(&light_acc[texel]), ACC_SATURATED)));
+    if (MEDIUM) {
+        c.g = f32(min(atomicLoad(&light_acc[texel + 1u]), ACC_SATURATED));
+        c.b = f32(min(atomicLoad(&light_acc[texel + 2u]), ACC_SATURATED));
+    }
+    var dir = vec3<f32>(0.0);
+    if (deposits_direction()) {
+        var nc = 1u;
+        if (MEDIUM) {
+            nc = 3u;
+        }
+        dir = vec3<f32>(
+            f32(bitcast<i32>(atomicLoad(&light_acc[texel + nc]))),
+            f32(bitcast<i32>(atomicLoad(&light_acc[texel + nc + 1u]))),
+            f32(bitcast<i32>(atomicLoad(&light_acc[texel + nc + 2u]))));
+    }
+    return LightSample(c / ACC_SCALE, dir);
+}
+
+// The deposited light at continuous pixel coordinates t (pixel centres at integers): the sum
+// over the pyramid's levels of their bilinear lookups.
+fn deposited_at(slot: u32, t: vec2<f32>) -> LightSample {
+    var sum = LightSample(vec3<f32>(0.0), vec3<f32>(0.0));
+    for (var m = 0u; m < ACC_LEVELS; m++) {
+        let tl = (t + vec2<f32>(0.5)) / f32(1u << m) - vec2<f32>(0.5);
+        let lo = floor(tl);
+        let f = tl - lo;
+        for (var n = 0u; n < 4u; n++) {
+            let o = vec2<u32>(n & 1u, n >> 1u);
+            let w = select(1.0 - f.x, f.x, o.x == 1u) * select(1.0 - f.y, f.y, o.y == 1u);
+            let l = acc_load(slot, m, vec2<i32>(lo) + vec2<i32>(o));
+            sum.color += w * l.color;
+            sum.dir += w * l.dir;
+        }
+    }
+    return sum;
+}
+
+// Zeroes what pixel px of slot `slot` reads: its texel on every level (coarse texels are
+// zeroed by each pixel they cover).
+fn acc_clear(slot: u32, px: vec2<u32>) {
     let channels = P.tiles.w;
-    let plane_size = u32(P.size.x) * u32(P.size.y) * channels;
-    let base = slot * plane_size;
-    var y = a.y;
-    loop {
-        if (y >= b.y) {
-            break;
+    for (var m = 0u; m < ACC_LEVELS; m++) {
+        let base = acc_texel(slot, m, px >> vec2<u32>(m));
+        for (var c = 0u; c < channels; c++) {
+            atomicStore(&light_acc[base + c], 0u);
         }
-        let wy = (min(hi.y, y + 1.0) - max(lo.y, y)) / w.y;
-        var x = a.x;
-        loop {
-            if (x >= b.x) {
-                break;
-            }
-            let wx = (min(hi.x, x + 1.0) - max(lo.x, x)) / w.x;
-            let weight = wx * wy;
-            if (weight > 0.0) {
-                let texel = base + (u32(y) * u32(P.size.x) + u32(x)) * channels;
-                // Unbiased rounding: a deterministic dither per beam, pixel and channel.
-                let h = hash(seed ^ (u32(x) * 73856093u) ^ (u32(y) * 19349663u));
-                let dither = f32(h & 0xffffu) / 65536.0;
-                var n_colour = 1u;
-                if (MEDIUM) {
-                    n_colour = 3u;
-                }
-                for (var ch = 0u; ch < n_colour; ch++) {
-                    let q = u32(amount[ch] * weight * ACC_SCALE + dither);
-                    if (q > 0u) {
-                        let old = atomicAdd(&light_acc[texel + ch], q);
-                        if (old + q >= ACC_SATURATED && guarded(SG_SATURATION)) {
-                            atomicMin(&light_acc[texel + ch], ACC_SATURATED);
-                        }
-                    }
-                }
-                if (deposits_direction()) {
-                    // Power-weighted directions (two's complement) for the highlights.
-                    let s = amount[0] * weight * ACC_SCALE;
-                    for (var ch = 0u; ch < 3u; ch++) {
-                        let q = i32(round(direction[ch] * s));
-                        if (q != 0) {
-                            atomicAdd(&light_acc[texel + n_colour + ch], bitcast<u32>(q));
-                        }
-                    }
-                }
-            }
-            x += 1.0;
-        }
-        y += 1.0;
     }
 }
 
@@ -192,6 +276,9 @@ fn beams_init(ij: vec2<u32>) {
     b.shadow = z0;
     b.power = vec3<f32>(1.0);
     store_beam(index, 0u, b);
+    if (!REFRACTION) {
+        return;
+    }
     // The cell itself is the footprint on plane 0.
     let s = P.beam_origin.z;
     let du = unproject(vec2<f32>(s, 0.0), z0) - unproject(vec2<f32>(0.0), z0);
@@ -212,17 +299,24 @@ fn neighbour_pos(ij: vec2<i32>, half: u32, z_prev: f32, z: f32) -> vec4<f32> {
     return vec4<f32>(drift(vec3<f32>(a.xy, z_prev), vec3<f32>(a.zw, vz), z), 1.0);
 }
 
-// Half the vector between a beam's neighbours on either side along one grid axis (central
-// difference), or the one-sided difference at the grid's edge.
+// The cell's edge along one grid axis: the vector to the nearer of the beam's two
+// neighbours on that axis. Where the light spreads evenly both are alike (the central
+// difference); where neighbouring rays scatter apart (a noisy index field, a fold) the far
+// one says nothing about this beam's cell, and taking it would smear light over it.
 fn cell_axis(p: vec3<f32>, minus: vec4<f32>, plus: vec4<f32>) -> vec3<f32> {
+    let a = plus.xyz - p;
+    let b = p - minus.xyz;
     if (minus.w > 0.0 && plus.w > 0.0) {
-        return 0.5 * (plus.xyz - minus.xyz);
+        if (dot(a, a) < dot(b, b)) {
+            return a;
+        }
+        return b;
     }
     if (plus.w > 0.0) {
-        return plus.xyz - p;
+        return a;
     }
     if (minus.w > 0.0) {
-        return p - minus.xyz;
+        return b;
     }
     return vec3<f32>(0.0);
 }
@@ -337,9 +431,8 @@ fn beams_step(ij: vec2<u32>, k: u32) {
         b.shadow = f.w;
     }
 
-    deposit_beam(k, b, du, dv, hash(index ^ hash(k ^ 0x5bd1e995u)));
-
     if (REFRACTION) {
+        deposit_beam(k, b, du, dv, hash(index ^ hash(k ^ 0x5bd1e995u)));
         let ix = index_at(b.pos);
         // Kick with the segment's path length (Eq. 8: v += Δs ∇η along the path).
         b.v = snell_renormalise(b.v + l * ix.grad, ix);
@@ -347,48 +440,43 @@ fn beams_step(ij: vec2<u32>, k: u32) {
     store_beam(index, k % 2u, b);
 }
 
+// Power of beam cell c at plane k, or the unobstructed source beyond the grid (light that is
+// not refracted: beams keep their cells, so their power is the light there).
+fn beam_cell_power(k: u32, c: vec2<i32>) -> vec3<f32> {
+    if (c.x < 0 || c.y < 0 || c.x >= i32(P.beam_grid.x) || c.y >= i32(P.beam_grid.y)) {
+        return vec3<f32>(1.0);
+    }
+    return load_beam_power((k % 2u) * beam_count() + u32(c.y) * P.beam_grid.x + u32(c.x)).rgb;
+}
+
 // Light arriving at the view-space point p on plane k (fluence relative to the source, and
-// the power-weighted direction of travel): bilinear over the deposited pixels, plus the
-// unobstructed light outside the traced beams.
+// the power-weighted direction of travel). Without refraction the beams never leave their
+// cells of the light grid, so the light is a bilinear lookup of their power; with refraction
+// it is what they deposited, bilinear over the pixels, plus the unobstructed light outside
+// the traced beams.
 fn beams_light_at(k: u32, p: vec3<f32>) -> LightSample {
+    if (!REFRACTION) {
+        let g = grid_coords(p);
+        let lo = floor(g);
+        let f = g - lo;
+        let a = vec2<i32>(lo);
+        let c = mix(mix(beam_cell_power(k, a), beam_cell_power(k, a + vec2<i32>(1, 0)), f.x),
+                    mix(beam_cell_power(k, a + vec2<i32>(0, 1)), beam_cell_power(k, a + vec2<i32>(1, 1)), f.x), f.y);
+        return LightSample(c, P.light_dir.xyz);
+    }
     let t = project(p);
+    let deposited = deposited_at(k % 3u, t);
+    var color = deposited.color;
+    var dir = deposited.dir;
+    // Unobstructed light where no beam is traced (outside the volume's shadow), box-filtered
+    // per pixel like the deposits and interpolated the same way.
+    let outside = beam_region_outside(k);
     let lo = floor(t);
     let f = t - lo;
-    let channels = P.tiles.w;
-    let base = (k % 3u) * u32(P.size.x) * u32(P.size.y) * channels;
-    var color = vec3<f32>(0.0);
-    var dir = vec3<f32>(0.0);
-    let outside = beam_region_outside(k);
     for (var n = 0u; n < 4u; n++) {
-        let o = vec2<f32>(f32(n & 1u), f32(n >> 1u));
-        let q = lo + o;
-        let wx = select(1.0 - f.x, f.x, (n & 1u) == 1u);
-        let wy = select(1.0 - f.y, f.y, (n >> 1u) == 1u);
-        let w = wx * wy;
-        var c = vec3<f32>(0.0);
-        if (in_rect(vec2<i32>(q))) {
-            let texel = base + (u32(q.y) * u32(P.size.x) + u32(q.x)) * channels;
-            let r = f32(min(atomicLoad(&light_acc[texel]), ACC_SATURATED));
-            c = vec3<f32>(r);
-            if (MEDIUM) {
-                c.g = f32(min(atomicLoad(&light_acc[texel + 1u]), ACC_SATURATED));
-                c.b = f32(min(atomicLoad(&light_acc[texel + 2u]), ACC_SATURATED));
-            }
-            c /= ACC_SCALE;
-            if (deposits_direction()) {
-                var nc = 1u;
-                if (MEDIUM) {
-                    nc = 3u;
-                }
-                dir += w * vec3<f32>(
-                    f32(bitcast<i32>(atomicLoad(&light_acc[texel + nc]))),
-                    f32(bitcast<i32>(atomicLoad(&light_acc[texel + nc + 1u]))),
-                    f32(bitcast<i32>(atomicLoad(&light_acc[texel + nc + 2u]))));
-            }
-        }
-        // Unobstructed light where no beam is traced (outside the volume's shadow).
-        c += vec3<f32>(outside_fraction(q, outside));
-        color += w * c;
+        let o = vec2<u32>(n & 1u, n >> 1u);
+        let w = select(1.0 - f.x, f.x, o.x == 1u) * select(1.0 - f.y, f.y, o.y == 1u);
+        color += vec3<f32>(w * outside_fraction(lo + vec2<f32>(o), outside));
     }
     if (deposits_direction()) {
         if (dot(dir, dir) > 0.0) {

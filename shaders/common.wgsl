@@ -81,9 +81,9 @@ struct Params {
     limits: vec4<f32>,               // min light dir z, min view dir z, max light value, env map mip count
     budget: vec4<f32>,               // x: max concentration (light / source light); y: interface half-width (view units); zw: unused
     beam_origin: vec4<f32>,          // beams: plane-0 pixel coords of cell (0, 0)'s corner (xy), stride (z), plane-0 cell area / pixel area (w)
-    beam_grid: vec4<u32>,            // beams: width, height, tiles in x, beam workgroups
+    beam_grid: vec4<u32>,            // light grid: width, height, tiles in x, workgroups
     rect: vec4<u32>,                 // pixels whose rays can meet the volume: x0, y0, x1, y1 (half-open)
-    tiles: vec4<u32>,                // view tiles in x, view workgroups, workgroups per dispatch row, light channels
+    tiles: vec4<u32>,                // view tiles in x, view workgroups, workgroups per dispatch row (all passes), light channels
 }
 
 struct Immediates {
@@ -132,6 +132,9 @@ struct Immediates {
 @group(0) @binding(19) var<storage, read_write> back_dir: array<vec4<f32>>;
 
 @group(0) @binding(20) var<storage, read_write> image_out: array<vec4<f32>>;
+// Per plane: the tiles of the light grid that can still reach the image (origin tile x, y,
+// tiles per row, workgroups), computed on the CPU.
+@group(0) @binding(21) var<storage, read> light_window: array<vec4<u32>>;
 
 var<immediate> I: Immediates;
 
@@ -394,6 +397,25 @@ fn light_direction(v: vec3<f32>) -> vec3<f32> {
 // Where the unrefracted light through plane-0 point `p0` crosses the plane at depth z.
 fn unrefracted(p0: vec3<f32>, z: f32) -> vec3<f32> {
     return p0 + P.light_dir.xyz * ((z - p0.z) / P.light_dir.z);
+}
+
+// The light grid: plane-0 cells (stride pixels wide, origin beam_origin.xy in pixel-edge
+// coordinates) carried along the unrefracted light; beams start at their centres.
+fn grid_cells() -> u32 {
+    return P.beam_grid.x * P.beam_grid.y;
+}
+
+// Centre of the cell at continuous cell coordinates `c` (cell (i, j) at c = (i, j)) on the
+// plane at depth z.
+fn grid_point(c: vec2<f32>, z: f32) -> vec3<f32> {
+    let t = P.beam_origin.xy + (c + vec2<f32>(0.5)) * P.beam_origin.z - vec2<f32>(0.5);
+    return unrefracted(unproject(t, P.plane.x), z);
+}
+
+// Continuous cell coordinates of a view-space point (inverse of `grid_point`).
+fn grid_coords(p: vec3<f32>) -> vec2<f32> {
+    let p0 = p - P.light_dir.xyz * ((p.z - P.plane.x) / P.light_dir.z);
+    return (project(p0) + vec2<f32>(0.5) - P.beam_origin.xy) / P.beam_origin.z - vec2<f32>(0.5);
 }
 
 // Light arriving at a point: relative to the source (fluence for the image), and the

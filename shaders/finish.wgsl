@@ -59,34 +59,25 @@ fn environment(p: vec2<i32>) -> vec3<f32> {
 // the light grid at the pixel's point.
 fn debug_light(k: u32, p: vec2<u32>) -> LightSample {
     let x = unproject(vec2<f32>(p), plane_z(k));
+    if (BEAMS && !REFRACTION) {
+        // Unrefracted beams keep their cells: the light there, as irradiance on the plane
+        // (the source's direction throughout).
+        return beams_light_at(k, x);
+    }
     if (BEAMS) {
-        let channels = P.tiles.w;
-        var c = vec3<f32>(0.0);
-        var dir = P.light_dir.xyz;
+        // What was deposited on the pixel (each level at the pixel's centre), and the
+        // unobstructed light beyond the traced beams.
+        var l = LightSample(vec3<f32>(0.0), P.light_dir.xyz);
         if (in_rect(vec2<i32>(p))) {
-            let texel = (k % 3u) * u32(P.size.x) * u32(P.size.y) * channels + pixel_index(p) * channels;
-            c = vec3<f32>(f32(min(atomicLoad(&light_acc[texel]), ACC_SATURATED)));
-            if (MEDIUM) {
-                c.g = f32(min(atomicLoad(&light_acc[texel + 1u]), ACC_SATURATED));
-                c.b = f32(min(atomicLoad(&light_acc[texel + 2u]), ACC_SATURATED));
-            }
-            c /= ACC_SCALE;
-            if (deposits_direction()) {
-                var nc = 1u;
-                if (MEDIUM) {
-                    nc = 3u;
-                }
-                let s = vec3<f32>(
-                    f32(bitcast<i32>(atomicLoad(&light_acc[texel + nc]))),
-                    f32(bitcast<i32>(atomicLoad(&light_acc[texel + nc + 1u]))),
-                    f32(bitcast<i32>(atomicLoad(&light_acc[texel + nc + 2u]))));
-                if (dot(s, s) > 0.0) {
-                    dir = normalize(s);
-                }
+            l = deposited_at(k % 3u, vec2<f32>(p));
+            if (deposits_direction() && dot(l.dir, l.dir) > 0.0) {
+                l.dir = normalize(l.dir);
+            } else {
+                l.dir = P.light_dir.xyz;
             }
         }
-        c += vec3<f32>(outside_fraction(vec2<f32>(p), beam_region_outside(k)));
-        return LightSample(c, dir);
+        l.color += vec3<f32>(outside_fraction(vec2<f32>(p), beam_region_outside(k)));
+        return l;
     }
     let g = grid_bilinear(k % 3u, grid_coords(x));
     var dir = P.light_dir.xyz;

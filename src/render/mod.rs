@@ -127,7 +127,8 @@ pub struct RenderOutput {
 /// Renders prepared scenes; keeps parsed shaders and pipelines between renders.
 pub struct Renderer {
     ctx: Arc<Context>,
-    sources: HashMap<Pass, ShaderSource>,
+    /// Parsed sources by file (the light and view passes share one).
+    sources: HashMap<&'static str, ShaderSource>,
     pipelines: HashMap<(Pass, Precision, Features, DebugView, u32), Arc<ComputePipeline>>,
     /// Scene textures of the last render, reused while the volume, transfer functions,
     /// sample distance and environment stay the same.
@@ -164,7 +165,7 @@ impl Renderer {
         if let Some(p) = self.pipelines.get(&key) {
             return Ok(p.clone());
         }
-        let source = match self.sources.entry(pass) {
+        let source = match self.sources.entry(pass.file()) {
             std::collections::hash_map::Entry::Occupied(e) => e.into_mut(),
             std::collections::hash_map::Entry::Vacant(e) => e.insert(pass.parse()?),
         };
@@ -172,8 +173,14 @@ impl Renderer {
         for c in constants.iter_mut().filter(|c| c.0 == "SAFEGUARDS_OFF") {
             c.1 = safeguards_off as f64;
         }
-        let compiled = source.specialise("main", &constants)?;
-        let label = format!("{} [{} {}]", pass.file(), features.describe(), precision.name());
+        let compiled = source.specialise(pass.entry(), &constants)?;
+        let label = format!(
+            "{}:{} [{} {}]",
+            pass.file(),
+            pass.entry(),
+            features.describe(),
+            precision.name()
+        );
         let p = Arc::new(ComputePipeline::new(&self.ctx, &label, &compiled)?);
         self.pipelines.insert(key, p.clone());
         Ok(p)
@@ -230,7 +237,8 @@ impl Renderer {
         let off = req.safeguards_off;
         let pipelines = [
             self.pipeline(Pass::Init, precision, features, req.debug_view, off)?,
-            self.pipeline(Pass::Propagate, precision, features, req.debug_view, off)?,
+            self.pipeline(Pass::Light, precision, features, req.debug_view, off)?,
+            self.pipeline(Pass::View, precision, features, req.debug_view, off)?,
             self.pipeline(Pass::Finish, precision, features, req.debug_view, off)?,
         ];
         state::run(

@@ -10,29 +10,40 @@ pub const BEAMS: &str = include_str!("../../shaders/beams.wgsl");
 pub const BACKWARD: &str = include_str!("../../shaders/backward.wgsl");
 pub const VIEW: &str = include_str!("../../shaders/view.wgsl");
 
-/// The compute passes of one render.
+/// The compute passes of one render: init, then per plane the light and the view rays, then
+/// finish.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Pass {
     Init,
-    Propagate,
+    Light,
+    View,
     Finish,
 }
 
 impl Pass {
-    pub const ALL: [Pass; 3] = [Pass::Init, Pass::Propagate, Pass::Finish];
+    pub const ALL: [Pass; 4] = [Pass::Init, Pass::Light, Pass::View, Pass::Finish];
 
     pub fn file(self) -> &'static str {
         match self {
             Pass::Init => "init.wgsl",
-            Pass::Propagate => "sweep.wgsl",
+            Pass::Light | Pass::View => "sweep.wgsl",
             Pass::Finish => "finish.wgsl",
+        }
+    }
+
+    /// The compute entry point of the pass in its file.
+    pub fn entry(self) -> &'static str {
+        match self {
+            Pass::Light => "light_main",
+            Pass::View => "view_main",
+            Pass::Init | Pass::Finish => "main",
         }
     }
 
     fn body(self) -> &'static str {
         match self {
             Pass::Init => include_str!("../../shaders/init.wgsl"),
-            Pass::Propagate => include_str!("../../shaders/sweep.wgsl"),
+            Pass::Light | Pass::View => include_str!("../../shaders/sweep.wgsl"),
             Pass::Finish => include_str!("../../shaders/finish.wgsl"),
         }
     }

@@ -61,28 +61,81 @@ struct Layout {
     beam_groups: u32,
     view_tiles_x: u32,
     view_groups: u32,
-    groups_per_row: u32,
-    rows: u32,
     channels: u32,
 }
 
 impl Layout {
     fn new(view: &ViewSetup, grid: BeamGrid, channels: u32) -> Layout {
-        let beam_groups = tiles(grid.width) * tiles(grid.height);
         let view_tiles_x = tiles(view.rect.width());
-        let view_groups = view_tiles_x * tiles(view.rect.height());
-        let total = (beam_groups + view_groups).max(1);
-        let groups_per_row = total.min(MAX_GROUPS_PER_ROW);
         Layout {
             grid,
-            beam_groups,
+            beam_groups: tiles(grid.width) * tiles(grid.height),
             view_tiles_x,
-            view_groups,
-            groups_per_row,
-            rows: total.div_ceil(groups_per_row),
+            view_groups: view_tiles_x * tiles(view.rect.height()),
             channels,
         }
     }
+}
+
+/// Levels of the pyramid the beams deposit their light on (`ACC_LEVELS` in beams.wgsl).
+pub const ACC_LEVELS: u32 = 3;
+
+/// Texels of one plane of the deposit pyramid of a `w`×`h` image.
+fn pyramid_texels(w: u32, h: u32) -> u64 {
+    (0..ACC_LEVELS)
+        .map(|m| w.div_ceil(1 << m) as u64 * h.div_ceil(1 << m) as u64)
+        .sum()
+}
+
+/// Workgroups of a dispatch laid out in rows of `MAX_GROUPS_PER_ROW` (the shaders linearise
+/// them with the same width).
+fn groups(n: u32) -> [u32; 3] {
+    [n.clamp(1, MAX_GROUPS_PER_ROW), n.div_ceil(MAX_GROUPS_PER_ROW).max(1), 1]
+}
+
+/// Tiles of the light grid each plane needs (origin tile x, y, tiles per row, workgroups):
+/// the cells whose light can still reach the image's rect on this plane or a later one. Light
+/// that is not refracted travels along the light direction, so that is the rect carried
+/// back along it to plane 0, from this plane and from the last one (in between it sweeps
+/// linearly), two tiles wider for the neighbours a cell reads. Refracted light can turn back
+/// toward the rect from anywhere: then every plane needs the whole grid.
+fn light_windows(view: &ViewSetup, grid: &BeamGrid, light: glam::Vec3, refraction: bool) -> Vec<[u32; 4]> {
+    let (tx, ty) = (tiles(grid.width), tiles(grid.height));
+    let full = [0, 0, tx, tx * ty];
+    if refraction {
+        return vec![full; view.planes as usize + 1];
+    }
+    let z0 = view.z_first;
+    let z_last = view.plane_z(view.planes - 1);
+    let r = view.rect;
+    let corners = [(r.x0, r.y0), (r.x1, r.y0), (r.x0, r.y1), (r.x1, r.y1)];
+    let cell = |z: f32, (x, y): (u32, u32)| {
+        let p = view.point_at(glam::Vec2::new(x as f32, y as f32), z);
+        let p0 = view.pixel_of(p - light * ((p.z - z0) / light.z));
+        (p0 - glam::Vec2::new(grid.x0, grid.y0)) / grid.stride
+    };
+    let last: Vec<glam::Vec2> = corners.iter().map(|c| cell(z_last, *c)).collect();
+    (0..=view.planes)
+        .map(|k| {
+            let z = view.plane_z(k.min(view.planes - 1));
+            let (lo, hi) = corners.iter().map(|c| cell(z, *c)).chain(last.iter().copied()).fold(
+                (glam::Vec2::splat(f32::INFINITY), glam::Vec2::splat(f32::NEG_INFINITY)),
+                |(lo, hi), p| (lo.min(p), hi.max(p)),
+            );
+            let margin = 2 * Pass::TILE as i64;
+            let clamp = |v: f32, n: u32| (v as i64).clamp(0, n as i64) as u32;
+            let (x0, y0) = (
+                clamp(lo.x.floor() - margin as f32, grid.width) / Pass::TILE,
+                clamp(lo.y.floor() - margin as f32, grid.height) / Pass::TILE,
+            );
+            let (x1, y1) = (
+                tiles(clamp(hi.x.ceil() + margin as f32, grid.width)),
+                tiles(clamp(hi.y.ceil() + margin as f32, grid.height)),
+            );
+            let (w, h) = (x1.saturating_sub(x0), y1.saturating_sub(y0));
+            [x0, y0, w.max(1), w * h]
+        })
+        .collect()
 }
 
 fn make_params(prepared: &PreparedScene, view: &ViewSetup, layout: &Layout, env_levels: u32) -> Params {
@@ -156,7 +209,7 @@ fn make_params(prepared: &PreparedScene, view: &ViewSetup, layout: &Layout, env_
         tiles: [
             layout.view_tiles_x,
             layout.view_groups,
-            layout.groups_per_row,
+            MAX_GROUPS_PER_ROW,
             layout.channels,
         ],
     }
@@ -207,7 +260,11 @@ impl State {
             ("beam_pos", 2 * cells * 16, beams && refraction),
             ("beam_aux", 2 * cells * 16, beams),
             ("beam_power", 2 * cells * rgba, beams),
-            ("light_acc", LIGHT_RING * pixels * layout.channels as u64 * 4, beams),
+            (
+                "light_acc",
+                LIGHT_RING * pyramid_texels(view.width, view.height) * layout.channels as u64 * 4,
+                beams && refraction,
+            ),
             ("back_light", LIGHT_RING * cells * rgba, !beams),
             ("back_dir", LIGHT_RING * cells * 16, back_dir),
             ("image_out", pixels * 16, true),
@@ -239,7 +296,7 @@ pub(super) fn run(
     req: &RenderRequest,
     features: Features,
     precision: Precision,
-    pipelines: &[Arc<ComputePipeline>; 3],
+    pipelines: &[Arc<ComputePipeline>; 4],
     cache: &mut Option<CachedTextures>,
 ) -> Result<RenderOutput, RenderError> {
     let (w, h) = (req.width, req.height);
@@ -257,8 +314,10 @@ pub(super) fn run(
     } else {
         1 + (req.debug_depth.clamp(0.0, 1.0) * (view.planes - 1) as f32).round() as u32
     };
-    let grid = view.beam_grid(light_direction(&scene.light), scene.quality.beams_per_texel);
+    let light = light_direction(&scene.light);
+    let grid = view.beam_grid(light, scene.quality.beams_per_texel);
     let layout = Layout::new(&view, grid, light_channels(&features, req.debug_view));
+    let windows = light_windows(&view, &grid, light, features.refraction);
 
     let window = prepared.window();
     // Scene textures are kept between renders while what they hold is unchanged (an
@@ -300,6 +359,13 @@ pub(super) fn run(
         cached.textures.env_levels,
     )))?;
     let state = State::new(ctx, &view, &layout, &features, precision)?;
+    let mut window_buffer = Buffer::new_upload(
+        ctx,
+        "light windows",
+        (windows.len() * 16) as u64,
+        vk::BufferUsageFlags::STORAGE_BUFFER,
+    )?;
+    window_buffer.write(bytemuck::cast_slice(&windows))?;
     let bytes = w as u64 * h as u64 * 16;
     let mut readback = Buffer::new_readback(ctx, "output readback", bytes)?;
     let ts = Timestamps::new(ctx, 2)?;
@@ -318,6 +384,7 @@ pub(super) fn run(
             ("medium_table", Resource::Image(&t.medium_table)),
             ("env_tex", Resource::Image(&t.env)),
             ("env_sampler", Resource::Sampler(&t.env_sampler)),
+            ("light_window", Resource::Buffer(&window_buffer)),
         ];
         for (name, buffer) in &state.buffers {
             writes.push((*name, Resource::Buffer(buffer)));
@@ -332,9 +399,12 @@ pub(super) fn run(
         cached.textures.record_upload(&mut rec, upload);
     }
     rec.fill(state.get("light_acc")?, 0);
-    let sweep_groups = [layout.groups_per_row, layout.rows, 1];
     let finish_groups = [tiles(w), tiles(h), 1];
     let texels_per_plane = (layout.grid.count() + view.rect.width() as u64 * view.rect.height() as u64).max(1);
+    let diagnoses_light = matches!(
+        req.debug_view,
+        DebugView::Light | DebugView::LightDirection | DebugView::Intensity
+    );
     let planes_per_submit = (TEXELS_PER_SUBMIT / texels_per_plane).clamp(1, PLANES_PER_SUBMIT as u64) as u32;
     let push = |plane: u32| Immediates {
         plane_index: plane,
@@ -342,7 +412,12 @@ pub(super) fn run(
         pad: [0; 2],
     };
 
-    rec.dispatch(&pipelines[0], &sets[0], bytemuck::bytes_of(&push(0)), sweep_groups)?;
+    rec.dispatch(
+        &pipelines[0],
+        &sets[0],
+        bytemuck::bytes_of(&push(0)),
+        groups(layout.beam_groups + layout.view_groups),
+    )?;
     rec.compute_to_compute();
     // Dispatch k moves the light to plane k and the view rays to plane k-1: the image needs
     // one dispatch more than there are planes, the light diagnostics stop at their plane.
@@ -376,15 +451,28 @@ pub(super) fn run(
         r.timestamp(&ts, 0);
         let end = (plane + chunk).min(dispatches + 1);
         while plane < end {
-            r.dispatch(&pipelines[1], &sets[1], bytemuck::bytes_of(&push(plane)), sweep_groups)?;
+            let immediates = push(plane);
+            let p = bytemuck::bytes_of(&immediates);
+            let window = windows[plane as usize][3];
+            if plane < view.planes && window > 0 {
+                r.dispatch(&pipelines[1], &sets[1], p, groups(window))?;
+            }
+            if diagnoses_light {
+                // Light diagnostics need no view rays, only the ring cleared for the light.
+                if features.transport == LightTransport::Beams && features.refraction {
+                    r.dispatch(&pipelines[2], &sets[2], p, groups(layout.view_groups))?;
+                }
+            } else {
+                r.dispatch(&pipelines[2], &sets[2], p, groups(layout.view_groups))?;
+            }
             r.compute_to_compute();
             plane += 1;
         }
         let last = plane > dispatches;
         if last {
             r.dispatch(
-                &pipelines[2],
-                &sets[2],
+                &pipelines[3],
+                &sets[3],
                 bytemuck::bytes_of(&push(planes_run - 1)),
                 finish_groups,
             )?;
@@ -424,5 +512,21 @@ pub(super) fn run(
                 },
             });
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn pyramid_levels_match_the_shader() {
+        let line = format!("const ACC_LEVELS: u32 = {}u;", super::ACC_LEVELS);
+        assert!(crate::render::shaders::BEAMS.contains(&line), "beams.wgsl lacks '{line}'");
+    }
+
+    #[test]
+    fn a_pyramid_plane_is_a_third_larger_than_the_image() {
+        // 64² + 32² + 16² texels.
+        assert_eq!(super::pyramid_texels(64, 64), 4096 + 1024 + 256);
+        assert_eq!(super::pyramid_texels(5, 3), 15 + 6 + 2);
     }
 }
