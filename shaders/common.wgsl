@@ -293,7 +293,7 @@ fn unproject(t: vec2<f32>, z: f32) -> vec3<f32> {
 // rounding is a few ulp of Δs (<= 32 radii) and of z: ~1e-5 radii, far below NEAR_PLANE x
 // radius, and it scales with the scene, so p.z > 0 at any spacing. A fixed floor such as 1e-6
 // view units would instead move planes nearer than that: micrometre voxels given in metres
-// would render differently from the same voxels given in voxels (tests/extremes.rs,
+// would render differently from the same voxels given in voxels (tests/extremes/,
 // camera_inside_a_microscopic_volume).
 fn project(p: vec3<f32>) -> vec2<f32> {
     var xy = p.xy;

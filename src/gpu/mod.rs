@@ -38,8 +38,9 @@ mod instance;
 mod pipeline;
 mod resources;
 pub mod shader;
+mod timestamps;
 
-pub use commands::{Recorder, Timestamps};
+pub use commands::Recorder;
 pub use context::{Context, ContextDesc, DeviceSelector, FENCE_TIMEOUT};
 pub use error::GpuError;
 pub use fault::Faults;
@@ -47,5 +48,6 @@ pub use instance::{list_devices, DeviceInfo};
 pub use pipeline::{ComputePipeline, DescriptorSet, Resource};
 pub use resources::{Buffer, Image, ImageDesc, Sampler, SamplerDesc};
 pub use shader::{Binding, BindingKind, CompiledShader, ShaderLayout, ShaderSource};
+pub use timestamps::Timestamps;
 
 pub use ash::vk::Format;

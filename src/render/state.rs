@@ -520,7 +520,10 @@ mod tests {
     #[test]
     fn pyramid_levels_match_the_shader() {
         let line = format!("const ACC_LEVELS: u32 = {}u;", super::ACC_LEVELS);
-        assert!(crate::render::shaders::BEAMS.contains(&line), "beams.wgsl lacks '{line}'");
+        assert!(
+            crate::render::shaders::BEAMS.contains(&line),
+            "beams.wgsl lacks '{line}'"
+        );
     }
 
     #[test]
