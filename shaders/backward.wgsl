@@ -204,10 +204,6 @@ fn backward_step(ij: vec2<u32>, k: u32) {
         // above source × concentration (the two are gathered with the same weights).
         light = min(light, vec3<f32>(concentration));
     }
-    if (guarded(SG_MAX_LIGHT)) {
-        // Bounded so 16-bit storage cannot overflow.
-        light = min(light, vec3<f32>(P.limits.z));
-    }
     store_back_light(write * n + index, vec4<f32>(light, shadow));
     if (REFRACTION || INTENSITY_CORRECTION) {
         back_dir[write * n + index] = vec4<f32>(v, concentration);

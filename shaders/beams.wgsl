@@ -147,11 +147,10 @@ fn deposit(slot: u32, c: vec2<f32>, w_in: vec2<f32>, amount: vec3<f32>, directio
     let widest = max(w.x, w.y);
     let m = min(u32(max(ceil(log2(max(widest, 1.0))), 0.0)), ACC_LEVELS - 1u);
     let s = f32(1u << m);
-    var wl = w / s;
-    if (guarded(SG_FOOTPRINT)) {
-        // Wider than the coarsest level's texels: concentrated onto one texel's width.
-        wl = min(wl, vec2<f32>(1.0));
-    }
+    // Wider than the coarsest level's texels (rare: light spread over more than 2^(levels-1)
+    // pixels by one beam) the box is split between two texels all the same: its power stays
+    // whole, only its spread is narrower.
+    let wl = w / s;
     let cl = c / s;
     let lo = cl - 0.5 * wl;
     let hi = cl + 0.5 * wl;
@@ -436,8 +435,22 @@ fn beams_step(ij: vec2<u32>, k: u32) {
         let ix = index_at(b.pos);
         // Kick with the segment's path length (Eq. 8: v += Δs ∇η along the path).
         b.v = snell_renormalise(b.v + l * ix.grad, ix);
+        if (safe_normalize(b.v).z < P.limits.x && guarded(SG_LIGHT_MIN_Z)) {
+            // Turned back toward the light (total internal reflection) or into the plane: it
+            // leaves the sweep, which only moves away from the light; nothing behind gets it.
+            b.power = vec3<f32>(0.0);
+        }
     }
     store_beam(index, k % 2u, b);
+}
+
+// The power budget (quality.max_concentration): a safeguard for extreme scenes; beams
+// conserve power, so physically valid ones stay far below it.
+fn budgeted(c: vec3<f32>) -> vec3<f32> {
+    if (guarded(SG_CONCENTRATION)) {
+        return min(c, vec3<f32>(P.budget.x));
+    }
+    return c;
 }
 
 // Power of beam cell c at plane k, or the unobstructed source beyond the grid (light that is
@@ -462,7 +475,7 @@ fn beams_light_at(k: u32, p: vec3<f32>) -> LightSample {
         let a = vec2<i32>(lo);
         let c = mix(mix(beam_cell_power(k, a), beam_cell_power(k, a + vec2<i32>(1, 0)), f.x),
                     mix(beam_cell_power(k, a + vec2<i32>(0, 1)), beam_cell_power(k, a + vec2<i32>(1, 1)), f.x), f.y);
-        return LightSample(c, P.light_dir.xyz);
+        return LightSample(budgeted(c), P.light_dir.xyz);
     }
     let t = project(p);
     let deposited = deposited_at(k % 3u, t);
@@ -487,7 +500,7 @@ fn beams_light_at(k: u32, p: vec3<f32>) -> LightSample {
     } else {
         dir = P.light_dir.xyz;
     }
-    return LightSample(color, dir);
+    return LightSample(budgeted(color), dir);
 }
 
 // The rect (pixel edges x0, y0, x1, y1 on plane k) that the traced beams cover when nothing

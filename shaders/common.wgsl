@@ -27,15 +27,13 @@ const SG_VIEW_MIN_Z: u32 = 2u;           // view rays leave the sweep below MIN_
 const SG_INTENSITY_RATIO: u32 = 4u;      // backward: per-plane clamp of the intensity-law ratio
 const SG_CONCENTRATION: u32 = 8u;        // light never exceeds max_concentration × the source
 const SG_FOLD: u32 = 16u;                // backward: no further concentration where the map folds
-const SG_MAX_LIGHT: u32 = 32u;           // stored light <= MAX_LIGHT_VALUE
 const SG_MAX_RADIANCE: u32 = 64u;        // accumulated colour <= MAX_RADIANCE
 const SG_FRESNEL_STEP: u32 = 128u;       // FRESNEL_MIN_RELATIVE_STEP
 const SG_GGX_ALPHA: u32 = 256u;          // MIN_GGX_ALPHA
 const SG_SEGMENT_OPACITY: u32 = 512u;    // MIN_SEGMENT_OPACITY
 const SG_GRADIENT_LENGTH: u32 = 1024u;   // MIN_GRADIENT_LENGTH
 const SG_DIRECTION_LENGTH: u32 = 2048u;  // MIN_DIRECTION_LENGTH
-const SG_FOOTPRINT: u32 = 4096u;         // beams: MAX_FOOTPRINT_PIXELS
-const SG_SATURATION: u32 = 8192u;        // beams: accumulated light stops at ACC_SATURATED
+const SG_SATURATION: u32 = 4096u;        // beams: accumulated light stops at ACC_SATURATED
 
 fn guarded(bit: u32) -> bool {
     return (SAFEGUARDS_OFF & bit) == 0u;
@@ -46,9 +44,16 @@ const MIN_DIRECTION_LENGTH: f32 = 1e-12;
 // Segments whose reference opacity is below this are rescaled linearly in length: the ratio
 // of the two opacities would be 0/0 for a fully transparent segment.
 const MIN_SEGMENT_OPACITY: f32 = 1e-6;
-// Gradients shorter than this (η per view unit) give no surface normal, so no highlight and
-// no renormalisation of the ray direction: normalising them would divide by zero.
+// Index changes per voxel below this give no surface normal, so no highlight and no
+// renormalisation of the ray direction: normalising them would divide by zero. Per voxel, not
+// per view unit, so that the image does not depend on the unit of length.
 const MIN_GRADIENT_LENGTH: f32 = 1e-6;
+
+// Whether ∇η (per view unit) is long enough to have a direction (MIN_GRADIENT_LENGTH).
+fn has_normal(grad_length: f32) -> bool {
+    let voxel = P.plane.y / P.plane.w; // one voxel (the smallest spacing) in view units
+    return grad_length * voxel > MIN_GRADIENT_LENGTH;
+}
 // Largest accumulated radiance in the colour buffer: a quarter of the 16-bit float maximum
 // (65504), so that the final blend with the environment cannot overflow in f16 either.
 // Reached only by sums of sharp highlights (roughness near 0 at many index steps).
@@ -352,7 +357,7 @@ fn index_at(p: vec3<f32>) -> Index {
 // the ray is reflected.
 fn snell_renormalise(v: vec3<f32>, ix: Index) -> vec3<f32> {
     let gl = length(ix.grad);
-    if (gl <= MIN_GRADIENT_LENGTH) {
+    if (!has_normal(gl)) {
         return v;
     }
     let n = ix.grad / gl;

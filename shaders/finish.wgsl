@@ -76,7 +76,7 @@ fn debug_light(k: u32, p: vec2<u32>) -> LightSample {
                 l.dir = P.light_dir.xyz;
             }
         }
-        l.color += vec3<f32>(outside_fraction(vec2<f32>(p), beam_region_outside(k)));
+        l.color = budgeted(l.color + vec3<f32>(outside_fraction(vec2<f32>(p), beam_region_outside(k))));
         return l;
     }
     let g = grid_bilinear(k % 3u, grid_coords(x));
@@ -115,7 +115,8 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(global_invocation_id) gid
     }
     switch DEBUG_VIEW {
         case 1u: {
-            out = vec4<f32>(debug_light(k, gid.xy).color, 1.0);
+            // The light itself (the source's colour and intensity included), as before.
+            out = vec4<f32>(debug_light(k, gid.xy).color * P.light_color.rgb, 1.0);
         }
         case 2u: {
             out = vec4<f32>(debug_light(k, gid.xy).dir * 0.5 + 0.5, 1.0);

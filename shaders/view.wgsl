@@ -90,7 +90,7 @@ fn view_step(px: vec2<u32>, k: u32) {
     var i_s = vec3<f32>(0.0);
     if (SPECULAR) {
         let gl = length(ix.grad);
-        if (gl > MIN_GRADIENT_LENGTH || !guarded(SG_GRADIENT_LENGTH)) {
+        if (has_normal(gl) || !guarded(SG_GRADIENT_LENGTH)) {
             // Fresnel from the index on both sides of the interface along its normal, counted
             // once per interface: each segment adds its share of the index change across it.
             let up = ix.grad / gl;
@@ -103,7 +103,9 @@ fn view_step(px: vec2<u32>, k: u32) {
                 n1 = eta_hi;
                 n2 = eta_lo;
             }
-            let share = clamp(abs(ix.eta - aux.w) / max(abs(eta_hi - eta_lo), MIN_GRADIENT_LENGTH), 0.0, 1.0);
+            // The index change across the interface is at least the gradient's over the
+            // half-width (has_normal bounds it away from 0).
+            let share = clamp(abs(ix.eta - aux.w) / max(abs(eta_hi - eta_lo), gl * h), 0.0, 1.0);
             let view = -dir;
             var n = up;
             if (dot(n, view) < 0.0) {

@@ -18,6 +18,10 @@ fn ball(intensity_correction: bool) -> PreparedScene {
 }
 
 fn ball_of(eta: f32, intensity_correction: bool) -> PreparedScene {
+    ball_with(eta, intensity_correction, caustica::scene::LightTransport::Beams)
+}
+
+fn ball_with(eta: f32, intensity_correction: bool, transport: caustica::scene::LightTransport) -> PreparedScene {
     let mut tf: TransferFunctions = plain_tf(vec![[0.0, 0.0]], vec![[0.0, 1.0, 1.0, 1.0]]);
     tf.eta = Curve {
         points: vec![[0.0, 1.0], [0.5, eta]],
@@ -25,6 +29,7 @@ fn ball_of(eta: f32, intensity_correction: bool) -> PreparedScene {
     let mut scene = head_on_scene(&tf);
     scene.quality.intensity_correction = intensity_correction;
     scene.quality.max_intensity_ratio = 4.0;
+    scene.quality.light_transport = transport;
     prepared(scene, sphere(N, RADIUS, 0.5), tf)
 }
 
@@ -96,7 +101,7 @@ fn without_intensity_correction_there_is_no_caustic() {
     // (1 − α)·m attenuation are convex, so no value can exceed the unobstructed light (1), up
     // to 16-bit rounding (2^-11).
     let mut gpu = Gpu::new();
-    let p = ball(false);
+    let p = ball_with(ETA, false, caustica::scene::LightTransport::Backward);
     for depth in [0.5f32, 0.7, 0.75, 0.8, 0.9, 1.0] {
         let out = gpu.debug(&p, SIZE, DebugView::Light, depth);
         let max = out.image.max_value();

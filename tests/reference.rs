@@ -116,12 +116,7 @@ fn constant_eta_does_not_bend_rays() {
     // exactly zero and the Fresnel term of equal indices is zero.
     let mut gpu = Gpu::new();
     let mut images = Vec::new();
-    // The third render switches FRESNEL_MIN_RELATIVE_STEP off, to show that it is needed.
-    for (eta, off) in [
-        (1.0f32, 0),
-        (1.33, 0),
-        (1.33, caustica::render::safeguards::FRESNEL_STEP),
-    ] {
+    for (eta, off) in [(1.0f32, 0), (1.33, 0)] {
         let mut tf = tf();
         tf.eta = Curve::constant(eta);
         let mut scene = head_on_scene(&tf);
@@ -139,9 +134,7 @@ fn constant_eta_does_not_bend_rays() {
     }
     let rgb = |img: &[[f32; 4]]| -> Vec<[f32; 3]> { img.iter().map(|p| [p[0], p[1], p[2]]).collect() };
     let (mean, max) = diff(&images[0], &rgb(&images[1]));
-    let (_, max_unguarded) = diff(&images[0], &rgb(&images[2]));
-    eprintln!("η 1 vs 1.33: mean {mean:.2e} max {max:.2e}; without the Fresnel step guard max {max_unguarded:.2e}");
-    assert!(max_unguarded >= 2e-3, "the Fresnel step guard made no difference");
+    eprintln!("η 1 vs 1.33: mean {mean:.2e} max {max:.2e}");
     // Only the last bits of the normalised direction can differ (|v| = η), which moves samples
     // by ~1e-7 voxels. After 16-bit storage that can flip the last bit of a stored light value
     // near 1.0 (2^-10 ≈ 9.8e-4), which reaches the image scaled by a colour ≤ 1: bound 2e-3,

@@ -41,9 +41,13 @@ fn builtin_scenes_render_finite_non_blank_and_deterministic() {
 fn features_follow_the_scene() {
     // Models only what a scene requires: the ball lens refracts but has a white medium; the
     // wine glass has a coloured medium; forcing refraction off removes the caustic work.
-    let ball = PreparedScene::load(&builtin("ball-lens").unwrap().scene).unwrap();
+    let mut ball = PreparedScene::load(&builtin("ball-lens").unwrap().scene).unwrap();
     let f = ball.features();
-    assert!(f.refraction && f.intensity_correction && !f.medium);
+    // Beams (the default) need no intensity law; the backward transport does.
+    assert!(f.refraction && !f.intensity_correction && !f.medium);
+    assert_eq!(f.transport, caustica::scene::LightTransport::Beams);
+    ball.scene.quality.light_transport = caustica::scene::LightTransport::Backward;
+    assert!(ball.features().intensity_correction);
     let wine = PreparedScene::load(&builtin("glass-wine").unwrap().scene).unwrap();
     assert!(wine.features().medium);
     let mut plain = builtin("ball-lens").unwrap().scene;

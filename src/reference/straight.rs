@@ -56,15 +56,15 @@ pub fn render(
                 let cur = sample(Vec3::new(xy.x, xy.y, z));
                 let e = PreintegratedTables::lookup(&tables.particle, prev, cur);
                 let a = 1.0 - (-e[3]).exp();
+                // The light at both ends of the segment, averaged (the GPU's trapezoid rule).
+                let light_end = light_t.map(|t| t * (1.0 - a));
                 if alpha < scene.quality.termination_opacity {
                     for c in 0..3 {
-                        color[c] += (1.0 - alpha) * e[c] * light[c] * light_t[c];
+                        color[c] += (1.0 - alpha) * e[c] * light[c] * 0.5 * (light_t[c] + light_end[c]);
                     }
                     alpha += (1.0 - alpha) * a;
                 }
-                for t in &mut light_t {
-                    *t *= 1.0 - a;
-                }
+                light_t = light_end;
                 prev = cur;
             }
             out.push([

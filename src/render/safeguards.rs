@@ -17,13 +17,13 @@ pub const VIEW_MIN_Z: u32 = 2;
 pub const INTENSITY_RATIO: u32 = 4;
 pub const CONCENTRATION: u32 = 8;
 pub const FOLD: u32 = 16;
-pub const MAX_LIGHT: u32 = 32;
 pub const MAX_RADIANCE_CLAMP: u32 = 64;
 pub const FRESNEL_STEP: u32 = 128;
 pub const GGX_ALPHA: u32 = 256;
 pub const SEGMENT_OPACITY: u32 = 512;
 pub const GRADIENT_LENGTH: u32 = 1024;
 pub const DIRECTION_LENGTH: u32 = 2048;
+pub const SATURATION: u32 = 4096;
 
 /// Largest accumulated radiance in the colour buffer (`MAX_RADIANCE` in `common.wgsl`).
 pub const MAX_RADIANCE: f32 = 16384.0;
@@ -56,11 +56,6 @@ pub const ALL: [Safeguard; 12] = [
         why: "past a focus (crossed rays) light would still be concentrated",
     },
     Safeguard {
-        bit: MAX_LIGHT,
-        name: "MAX_LIGHT",
-        why: "light above the 16-bit float range becomes infinite",
-    },
-    Safeguard {
         bit: MAX_RADIANCE_CLAMP,
         name: "MAX_RADIANCE",
         why: "sums of sharp highlights overflow the 16-bit colour buffer",
@@ -89,6 +84,11 @@ pub const ALL: [Safeguard; 12] = [
         bit: DIRECTION_LENGTH,
         name: "DIRECTION_LENGTH",
         why: "a zero direction vector cannot be normalised (0/0)",
+    },
+    Safeguard {
+        bit: SATURATION,
+        name: "SATURATION",
+        why: "deposits summing past the fixed-point range would wrap around to small values",
     },
 ];
 

@@ -9,7 +9,7 @@ fn safeguard_concentration_bounds_light_behind_a_focus() {
     // η 1→3 ball, head-on: behind it the backward scheme keeps concentrating the light.
     // Budget 64: measured without it 336 at the back of the box.
     let mut gpu = Gpu::new();
-    let p = head_on(ball_scene(3.0, hard_ball(N, 0.3), false));
+    let p = backward(head_on(ball_scene(3.0, hard_ball(N, 0.3), false)));
     let budget = p.scene.quality.max_concentration() * ROUNDING;
     let on = light_at(&mut gpu, &p, 1.0, 0).max_value();
     let off = light_at(&mut gpu, &p, 1.0, safeguards::CONCENTRATION).max_value();
@@ -23,7 +23,7 @@ fn safeguard_fold_stops_concentration_past_the_focus() {
     // SIZE² and the haze only absorbs. Without fold detection the backward map keeps
     // concentrating (measured: power 1178 of 1024 at mid-depth, vs 598).
     let mut gpu = Gpu::new();
-    let p = focus_scene(64.0);
+    let p = backward(focus_scene(64.0));
     let input = (SIZE * SIZE) as f64;
     let on = power(&light_at(&mut gpu, &p, 0.5, 0));
     let off = power(&light_at(&mut gpu, &p, 0.5, safeguards::FOLD));
@@ -33,17 +33,35 @@ fn safeguard_fold_stops_concentration_past_the_focus() {
 
 #[test]
 fn safeguard_light_min_z_keeps_reflected_light_out() {
-    // η 4 → 1 at a 30° interface reflects head-on light totally, back toward the light: what
-    // reaches the back of the box is less than what entered. Without the bound on the light
-    // direction, light travelling (nearly) inside the planes is looked up from far away and
-    // amplified by the area ratio (measured: 1984 of 1024 vs 334).
+    // η 4 → 1 at a 30° interface reflects head-on light totally, back toward the light.
+    // Beams that turn back leave the sweep: what reaches the back of the box is at most what
+    // entered (measured 550 of 1024). Without the bound they step along a direction of
+    // negative or zero depth, onto planes they have left behind. The backward scheme turns such light into grazing light and
+    // keeps the power near the input (its intensity law is first order: measured 1080 of
+    // 1024); without the bound, light travelling (nearly) inside the planes is looked up from
+    // far away and amplified by the area ratio (measured 3449).
     let mut gpu = Gpu::new();
-    let p = head_on(turning_back_scene());
     let input = (SIZE * SIZE) as f64;
+    let beams = head_on(turning_back_scene());
+    let on = light_at(&mut gpu, &beams, 1.0, 0);
+    let off = light_at(&mut gpu, &beams, 1.0, safeguards::LIGHT_MIN_Z);
+    eprintln!(
+        "LIGHT_MIN_Z, beams: power at the back {:.0} (on), {:.0} with {} non-finite (off), input {input}",
+        power(&on),
+        power(&off),
+        off.count_invalid().0
+    );
+    // Without the bound the reflected beams land on the back plane too (measured 561).
+    assert!(power(&on) <= input && on.count_invalid() == (0, 0));
+    assert!(
+        power(&off) > power(&on) * 1.005,
+        "the reflected light does not reach the back"
+    );
+    let p = backward(head_on(turning_back_scene()));
     let on = power(&light_at(&mut gpu, &p, 1.0, 0));
     let off = power(&light_at(&mut gpu, &p, 1.0, safeguards::LIGHT_MIN_Z));
-    eprintln!("LIGHT_MIN_Z: power at the back {on:.0} (on), {off:.0} (off), input {input}");
-    assert!(on < input && off > input, "on {on}, off {off}");
+    eprintln!("LIGHT_MIN_Z, backward: power at the back {on:.0} (on), {off:.0} (off), input {input}");
+    assert!(on < 1.1 * input && off > 2.0 * input, "on {on}, off {off}");
 }
 
 #[test]
@@ -52,7 +70,7 @@ fn safeguard_intensity_ratio_limits_growth_per_plane() {
     // (bilinear gathers and transmittance are convex; the unobstructed light is 1).
     let mut gpu = Gpu::new();
     let tf = blobs_tf();
-    let p = prepared(head_on_scene(&tf), sphere(N, 0.35, 1.0), tf);
+    let p = backward(prepared(head_on_scene(&tf), sphere(N, 0.35, 1.0), tf));
     let planes = gpu.render(&p, &request(SIZE, SIZE)).stats.planes;
     let max_ratio = p.scene.quality.max_intensity_ratio;
     let worst_growth = |gpu: &mut Gpu, off: u32| {
@@ -73,32 +91,6 @@ fn safeguard_intensity_ratio_limits_growth_per_plane() {
         on <= max_ratio * ROUNDING && off > max_ratio * ROUNDING,
         "on {on}, off {off}"
     );
-}
-
-#[test]
-fn safeguard_max_light_keeps_f16_light_finite() {
-    // The brightest allowed light through a focus: concentrated 4× it passes the 16-bit float
-    // maximum (65504). Without the clamp it leaves the stated bound, and the f16 store either
-    // overflows to infinity or saturates at 65504, depending on the device's rounding
-    // (lavapipe saturates).
-    let mut gpu = Gpu::new();
-    let mut p = focus_scene(64.0);
-    p.scene.light.intensity = caustica::scene::MAX_LIGHT_RADIANCE;
-    let depths = [0.15f32, 0.2, 0.25, 0.3, 0.35];
-    let scan = |gpu: &mut Gpu, off: u32| {
-        depths
-            .iter()
-            .map(|d| {
-                let img = light_at(gpu, &p, *d, off);
-                (img.count_invalid().0, img.max_value())
-            })
-            .fold((0, 0.0f32), |(n, m), (a, b)| (n + a, m.max(b)))
-    };
-    let (bad_on, max_on) = scan(&mut gpu, 0);
-    let (bad_off, max_off) = scan(&mut gpu, safeguards::MAX_LIGHT);
-    eprintln!("MAX_LIGHT: max {max_on}, non-finite {bad_on} (on); max {max_off}, non-finite {bad_off} (off)");
-    assert!(bad_on == 0 && max_on <= MAX_LIGHT_VALUE);
-    assert!(bad_off > 0 || max_off > MAX_LIGHT_VALUE, "the clamp changed nothing");
 }
 
 /// Hard η 1.5 ball seen head-on with the light from behind the viewer: the centre pixel's
@@ -173,6 +165,10 @@ fn safeguard_view_min_z_stops_rays_that_turned_back() {
     };
     let mut scene = head_on_scene(&tf);
     scene.shading.specular = 0.0;
+    // Planes half a voxel apart resolve the 1.5-voxel interface: at one voxel the samples of
+    // one column of rays straddle it (η 2.2 then 1.0 with no gradient left) and those rays
+    // pass it unreflected, which is a sampling limit, not what this guard is about.
+    scene.quality.sample_distance = 0.5;
     scene.eta_volume = Some(caustica::scene::VolumeSource::Builtin {
         name: "test".into(),
         resolution: 0,
@@ -181,11 +177,20 @@ fn safeguard_view_min_z_stops_rays_that_turned_back() {
     let mut p = prepared(scene, wall, tf);
     p.eta_volume = Some(std::sync::Arc::new(reflecting_interface(N)));
     assert!(p.features().eta_volume);
-    let red_pixels = |img: &caustica::render::RenderedImage| img.pixels.iter().filter(|q| q[0] > 0.1).count();
+    // Rays along the box's side faces graze the η 4 → 1 step there (index 4 inside the face,
+    // the surrounding medium outside), which cannot turn them; only rays at least two pixels
+    // inside the box's projection (columns 10–21 of 32) count.
+    let red_pixels = |img: &caustica::render::RenderedImage| {
+        img.pixels
+            .iter()
+            .enumerate()
+            .filter(|(i, q)| (10..22).contains(&(*i as u32 % SIZE)) && q[0] > 0.1)
+            .count()
+    };
     let on = red_pixels(&image_with(&mut gpu, &p, SIZE, 0));
     let off = red_pixels(&image_with(&mut gpu, &p, SIZE, safeguards::VIEW_MIN_Z));
-    // Without the interface the wall shows wherever the box is (a third of this view: the
-    // orthographic view spans the box's diagonal), so it is not invisible for another reason.
+    // Without the interface the wall shows wherever the box is (the orthographic view spans
+    // the box's diagonal), so it is not invisible for another reason.
     p.eta_volume = Some(std::sync::Arc::new(volume_from(N, |_, _, _| 0.0)));
     let clear = red_pixels(&image_with(&mut gpu, &p, SIZE, 0));
     eprintln!(
@@ -195,81 +200,10 @@ fn safeguard_view_min_z_stops_rays_that_turned_back() {
     // Orthographic and head-on, every ray meets the interface 30° off its normal, beyond the
     // critical angle (14.5°): all are reflected.
     assert!(
-        clear > (SIZE * SIZE / 4) as usize,
+        clear > (12 * SIZE / 2) as usize,
         "the wall is not visible at all: {clear}"
     );
     assert!(on == 0 && off > 0, "on {on}, off {off}");
-}
-
-/// An opaque slab (voxels 4–12 in depth) in front of an index drop from η 4 to 1 (voxels
-/// 14–18, a second volume), both exactly perpendicular to the view axis, lit head-on: ∇η
-/// points exactly against the light, with no sideways part. With planes 8 voxels apart one
-/// step of Eq. 10 (v += Δs ∇η) overshoots and reverses the light: v = (0, 0, < 0). Turning it
-/// back into the sweep (LIGHT_MIN_Z) needs its sideways direction, normalize((0, 0, 0)).
-fn reversed_light_scene() -> PreparedScene {
-    let mut tf = plain_tf(vec![[0.0, 0.0], [0.5, 0.0], [0.6, 1.0]], vec![[0.0, 1.0, 1.0, 1.0]]);
-    tf.eta = Curve {
-        points: vec![[0.0, 1.0], [1.0, 4.0]],
-    };
-    let mut scene = head_on_scene(&tf);
-    scene.shading.specular = 0.0;
-    scene.quality.sample_distance = 8.0;
-    scene.quality.light_filter = false;
-    scene.eta_volume = Some(caustica::scene::VolumeSource::Builtin {
-        name: "test".into(),
-        resolution: 0,
-    });
-    let n = N as f32;
-    let slab = volume_from(N, move |_, _, z| if (4.0..12.0).contains(&(z * n)) { 1.0 } else { 0.0 });
-    let mut p = prepared(scene, slab, tf);
-    p.eta_volume = Some(std::sync::Arc::new(volume_from(N, move |_, _, z| {
-        (1.0 - (z * n - 14.0) / 4.0).clamp(0.0, 1.0)
-    })));
-    p
-}
-
-#[test]
-fn safeguard_direction_length_handles_a_reversed_light() {
-    let mut gpu = Gpu::new();
-    let p = reversed_light_scene();
-    assert!(p.features().eta_volume && p.features().refraction);
-    check(
-        &mut gpu,
-        "light reversed by an index drop (η 4→1, Δs 8)",
-        &p,
-        &request(SIZE, SIZE),
-        diffuse_bound(&p, 0.0),
-        "DIRECTION_LENGTH, LIGHT_MIN_Z",
-    );
-    // The texels in the slab's shadow: the centre of the view (the box covers its middle
-    // third; around it light passes beside the box).
-    let centre = |img: &caustica::render::RenderedImage| -> Vec<[f32; 4]> {
-        (12..20)
-            .flat_map(|y| (12..20).map(move |x| (y * SIZE + x) as usize))
-            .map(|i| img.pixels[i])
-            .collect()
-    };
-    // The scene does what it says: behind the drop the light points back toward the camera
-    // (z of the direction -1, shown as 0).
-    let dir = centre(&gpu.debug(&p, SIZE, DebugView::LightDirection, 1.0).image);
-    assert!(
-        dir.iter().all(|q| q[2] < 0.01),
-        "the light was not reversed: {:?}",
-        dir[0]
-    );
-    // Without the safeguard the sideways direction is NaN, the lookup point of the light too,
-    // and a NaN point counts as outside the buffer: the reversed texels get the unobstructed
-    // source light, which leaks through the opaque slab.
-    let mut max_light = |off: u32| {
-        centre(&light_at(&mut gpu, &p, 1.0, off))
-            .iter()
-            .fold(0.0f32, |m, q| m.max(q[1]))
-    };
-    let on = max_light(0);
-    let off = max_light(safeguards::DIRECTION_LENGTH);
-    eprintln!("DIRECTION_LENGTH: light behind the opaque slab {on} (on), {off} (off)");
-    // 8 voxels at opacity 1 (optical depth 16 per voxel) let nothing through: e^-128.
-    assert!(on < 1e-3 && off > 0.1, "on {on}, off {off}");
 }
 
 #[test]
@@ -323,10 +257,13 @@ fn parallel_rays_take_the_full_resolution_environment() {
 
 #[test]
 fn camera_inside_a_microscopic_volume() {
-    // The camera just inside a volume of 1e-7-unit voxels (micrometre data in metres): every
-    // plane lies nearer than 1e-6 view units. The image must not depend on the unit: the
-    // perspective division sees the planes' own depths, which NEAR_PLANE keeps > 0 at any
-    // scale; a fixed floor on the depth would move them.
+    // The camera just inside a volume of 2^-23-unit voxels (1.2e-7: micrometre data in
+    // metres): every plane lies nearer than 1e-6 view units. The image must not depend on the
+    // unit: the perspective division sees the planes' own depths, which NEAR_PLANE keeps > 0 at
+    // any scale; a fixed floor on the depth would move them. A power of two scales every f32
+    // operation exactly, so any difference comes from a length that does not scale with the
+    // scene (refracted light through a lens focus amplifies the last-bit rounding of other
+    // factors, such as 1e-7, to ~0.4%).
     let mut gpu = Gpu::new();
     let tf = blobs_tf();
     let mut scene = head_on_scene(&tf);
@@ -336,13 +273,13 @@ fn camera_inside_a_microscopic_volume() {
     scene.light.polar_deg = 40.0;
     let unit = sphere(N, 0.45, 1.0);
     let mut tiny = unit.clone();
-    tiny.spacing = [1e-7; 3];
+    tiny.spacing = [2f32.powi(-23); 3];
     let a = prepared(scene.clone(), unit, tf.clone());
     let b = prepared(scene, tiny, tf);
     let ia = gpu.render(&a, &request(SIZE, SIZE)).image;
     let ib = check(
         &mut gpu,
-        "camera inside 1e-7-unit voxels",
+        "camera inside 2^-23-unit voxels",
         &b,
         &request(SIZE, SIZE),
         specular_bound(0.0),
@@ -356,8 +293,7 @@ fn camera_inside_a_microscopic_volume() {
         .flat_map(|(p, q)| (0..3).map(move |k| (p[k] - q[k]).abs()))
         .fold(0.0f32, f32::max);
     eprintln!("microscopic volume: largest difference to 1-unit voxels {diff}");
-    // Scaling every length by 1e-7 changes only f32 rounding (2^-24 relative), far below one
-    // f16 step of the colour buffer (2^-11); measured 0. The former floor of 1e-6 view units
-    // on the perspective depth gave 3.4e-3 here.
-    assert!(diff < 5e-4, "the image depends on the length unit: {diff}");
+    // Measured 0. The former floor of 1e-6 view units on the perspective depth gave 3.4e-3
+    // here.
+    assert!(diff == 0.0, "the image depends on the length unit: {diff}");
 }

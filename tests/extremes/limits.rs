@@ -5,18 +5,22 @@ use super::*;
 #[test]
 fn eta_contrast_one_to_three_across_one_voxel() {
     let mut gpu = Gpu::new();
-    for specular in [false, true] {
-        let p = ball_scene(3.0, hard_ball(N, 0.3), specular);
-        assert!(p.features().intensity_correction);
+    for (specular, back) in [(false, false), (true, false), (false, true)] {
+        let mut p = ball_scene(3.0, hard_ball(N, 0.3), specular);
+        if back {
+            p = backward(p);
+            assert!(p.features().intensity_correction);
+        }
+        assert!(p.features().refraction);
         let bound = if specular {
             specular_bound(0.0)
         } else {
             diffuse_bound(&p, 0.0)
         };
-        let case = if specular {
-            "η 1→3 in one voxel, specular"
-        } else {
-            "η 1→3 in one voxel"
+        let case = match (specular, back) {
+            (true, _) => "η 1→3 in one voxel, specular",
+            (false, false) => "η 1→3 in one voxel",
+            (false, true) => "η 1→3 in one voxel, backward transport",
         };
         check(
             &mut gpu,
@@ -338,7 +342,9 @@ fn dispersal_where_the_area_grows_without_bound() {
 #[test]
 fn brightest_allowed_light() {
     // light colour × intensity at its maximum (scene::MAX_LIGHT_RADIANCE = MAX_LIGHT_VALUE)
-    // through a focusing lens: the light buffer is bounded by MAX_LIGHT_VALUE, f16-safe.
+    // through a focusing lens: the light buffers hold light relative to the source, bounded
+    // by the power budget (≤ MAX_LIGHT_VALUE), so they stay f16-safe; the colour buffer is
+    // bounded by MAX_RADIANCE.
     let mut gpu = Gpu::new();
     let mut p = focus_scene(64.0);
     p.scene.light.intensity = caustica::scene::MAX_LIGHT_RADIANCE;
@@ -349,7 +355,7 @@ fn brightest_allowed_light() {
         &p,
         &request(SIZE, SIZE),
         diffuse_bound(&p, 0.0),
-        "MAX_LIGHT",
+        "CONCENTRATION, MAX_RADIANCE",
     );
     assert!(out.image.max_value() > 1000.0, "the light did not reach the image");
     p.scene.light.intensity *= 2.0;

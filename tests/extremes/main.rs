@@ -191,6 +191,13 @@ fn assert_nan_without(gpu: &mut Gpu, p: &PreparedScene, size: u32, name: &str, b
     assert!(on == 0 && off > 0);
 }
 
+/// The same scene with the paper's backward light transport (the safeguards of the intensity
+/// law only exist there).
+fn backward(mut p: PreparedScene) -> PreparedScene {
+    p.scene.quality.light_transport = caustica::scene::LightTransport::Backward;
+    p
+}
+
 fn head_on(mut p: PreparedScene) -> PreparedScene {
     p.scene.light.polar_deg = 0.0;
     p.scene.camera.projection = Projection::Orthographic;
