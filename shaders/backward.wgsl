@@ -192,11 +192,13 @@ fn backward_step(ij: vec2<u32>, k: u32) {
         // Eq. 10: ld_i = ld_{i-1} + Δs ∇η along the segment, with |v| = η by Snell's law.
         let ix = index_at(x);
         let v_new = snell_renormalise(v + l * ix.grad, ix);
-        // The intensity law tracks the irradiance on the planes; where the direction bends,
-        // the same irradiance crosses the plane in a beam of another cross-section.
-        let cos_old = light_direction(v).z;
-        let cos_new = light_direction(v_new).z;
-        light *= cos_old / cos_new;
+        if (INTENSITY_CORRECTION) {
+            // The intensity law tracks the irradiance on the planes; where the direction
+            // bends, the same irradiance crosses the plane in a beam of another cross-section.
+            let cos_old = light_direction(v).z;
+            let cos_new = light_direction(v_new).z;
+            light *= cos_old / cos_new;
+        }
         v = v_new;
     }
     if (INTENSITY_CORRECTION && guarded(SG_CONCENTRATION)) {

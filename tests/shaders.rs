@@ -19,7 +19,7 @@ const DEBUG_VIEWS: [DebugView; 5] = [
 #[test]
 fn every_variant_compiles_and_validates() {
     // Every feature combination (both transports) at both precisions for the image, and every
-    // diagnostic view of each: 3 passes × 256 × (2 + 4) variants.
+    // diagnostic view of each: 4 passes × 256 × (2 + 4) variants.
     let mut count = 0;
     for pass in Pass::ALL {
         let source = pass.parse().unwrap_or_else(|e| panic!("{e}"));
@@ -28,7 +28,7 @@ fn every_variant_compiles_and_validates() {
             variants.extend(DEBUG_VIEWS.iter().map(|d| (*d, Precision::F16)));
             for (debug, precision) in variants {
                 let compiled = source
-                    .specialise("main", &features.constants(debug, precision))
+                    .specialise(pass.entry(), &features.constants(debug, precision))
                     .unwrap_or_else(|e| panic!("{:?} {features:?} {debug:?} {precision:?}: {e}", pass));
                 let spirv = &compiled.spirv;
                 assert!(spirv.len() > 100 && spirv[0] == 0x0723_0203, "not SPIR-V");
@@ -36,7 +36,7 @@ fn every_variant_compiles_and_validates() {
             }
         }
     }
-    assert_eq!(count, 3 * 256 * 6);
+    assert_eq!(count, 4 * 256 * 6);
 }
 
 #[test]
@@ -123,7 +123,7 @@ fn representative_variants_build_on_the_device() {
         };
         for f in variants {
             let compiled = source
-                .specialise("main", &f.constants(DebugView::Image, precision))
+                .specialise(pass.entry(), &f.constants(DebugView::Image, precision))
                 .unwrap();
             ComputePipeline::new(&gpu.ctx, "variant check", &compiled)
                 .unwrap_or_else(|e| panic!("{pass:?} {precision:?} {f:?}: {e}"));
