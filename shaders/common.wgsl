@@ -103,13 +103,17 @@ struct Immediates {
 @group(0) @binding(13) var view_dir_in: texture_2d<f32>;
 @group(0) @binding(14) var color_in: texture_2d<f32>;
 @group(0) @binding(15) var medium_in: texture_2d<f32>;
-// Write side (state at plane i).
-@group(0) @binding(16) var light_out: texture_storage_2d<rgba16float, write>;
+// Write side (state at plane i). Light, colour and medium are stored at the scene's
+// precision: `ColourState` is rgba16float as written here, and the renderer gives this one
+// alias rgba32float for `precision = "f32"` (`ShaderSource::set_storage_format`; WGSL has no
+// override for a texel format).
+alias ColourState = texture_storage_2d<rgba16float, write>;
+@group(0) @binding(16) var light_out: ColourState;
 @group(0) @binding(17) var light_dir_out: texture_storage_2d<rgba32float, write>;
 @group(0) @binding(18) var view_pos_out: texture_storage_2d<rgba32float, write>;
 @group(0) @binding(19) var view_dir_out: texture_storage_2d<rgba32float, write>;
-@group(0) @binding(20) var color_out: texture_storage_2d<rgba16float, write>;
-@group(0) @binding(21) var medium_out: texture_storage_2d<rgba16float, write>;
+@group(0) @binding(20) var color_out: ColourState;
+@group(0) @binding(21) var medium_out: ColourState;
 @group(0) @binding(22) var image_out: texture_storage_2d<rgba32float, write>;
 
 var<immediate> I: Immediates;
@@ -134,12 +138,12 @@ fn unproject(t: vec2<f32>, z: f32) -> vec3<f32> {
 // Continuous texel coordinates of a view-space point (inverse of `unproject`).
 // The perspective division needs no guard: every point projected lies on a plane of the
 // sweep (p.z = z_prev or z, to rounding; MIN_LIGHT_DIR_Z and MIN_VIEW_DIR_Z keep the steps
-// onto it finite), and planes start at z_first >= NEAR_PLANE x radius > 0 (geometry.rs). The
+// onto it finite), and planes start at z_first >= NEAR_PLANE x radius > 0 (scene/view.rs). The
 // rounding is a few ulp of Δs (<= 32 radii), of the light filter's offsets (<= MAX_SOFTNESS x
 // Δs) and of z: ~1e-5 radii, far below NEAR_PLANE x radius, and it scales with the scene, so
 // p.z > 0 at any spacing. A fixed floor such as 1e-6 view units would instead move planes
 // nearer than that: micrometre voxels given in metres would render differently from the same
-// voxels given in voxels (tests/extremes.rs, camera_inside_a_microscopic_volume).
+// voxels given in voxels (tests/extremes/, camera_inside_a_microscopic_volume).
 fn project(p: vec3<f32>) -> vec2<f32> {
     var xy = p.xy;
     if (!ORTHOGRAPHIC) {

@@ -6,8 +6,7 @@
 use std::path::{Path, PathBuf};
 
 use crate::gpu::Context;
-use crate::render::{PreparedScene, RenderError};
-use crate::scene::{builtin, Precision, Scene, SceneError, TransferSource, VolumeSource};
+use crate::scene::{builtin, Precision, PrepareError, PreparedScene, Scene, SceneError, TransferSource, VolumeSource};
 use crate::transfer::{TransferError, TransferFunctions};
 use crate::volume::{Endian, RawDesc, ScalarType, VolumeError};
 
@@ -24,7 +23,19 @@ pub enum InputError {
     #[error(transparent)]
     Transfer(#[from] TransferError),
     #[error(transparent)]
-    Render(#[from] RenderError),
+    Prepare(#[from] PrepareError),
+}
+
+impl crate::Classify for InputError {
+    fn exit_class(&self) -> crate::ExitClass {
+        match self {
+            InputError::Missing | InputError::Option(_) => crate::ExitClass::Input,
+            InputError::Scene(e) => e.exit_class(),
+            InputError::Volume(e) => e.exit_class(),
+            InputError::Transfer(e) => e.exit_class(),
+            InputError::Prepare(e) => e.exit_class(),
+        }
+    }
 }
 
 /// The input options shared by `caustica render` and `caustica view`.
@@ -257,7 +268,7 @@ pub fn fit_to_device(
     prepared: &mut PreparedScene,
     ctx: &Context,
     allow: bool,
-) -> Result<Option<[usize; 3]>, RenderError> {
+) -> Result<Option<[usize; 3]>, PrepareError> {
     prepared.fit_to_device(ctx.info.max_image_3d, ctx.device_local_bytes() / 2, allow)
 }
 

@@ -377,6 +377,38 @@ fn without_a_display_the_viewer_fails_with_a_clear_message() {
     assert!(!stderr.contains("panicked"), "{stderr}");
 }
 
+/// A GPU failure on the render thread (the device is lost at the first frame's submission)
+/// ends `view --exit-after-idle` with the GPU exit code, not the one for bad input.
+#[test]
+fn a_lost_device_in_the_viewer_exits_4() {
+    let x = Xvfb::start();
+    let stderr_path = std::env::temp_dir().join(format!("caustica-viewer-lost-{}", std::process::id()));
+    let args = [
+        "view",
+        "--scene",
+        "ball-lens",
+        "--resolution",
+        "16",
+        "--size",
+        "64x48",
+        "--no-panel",
+        "--exit-after-idle",
+    ];
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_caustica"));
+    cmd.args(args)
+        .env("DISPLAY", &x.display)
+        .env("CAUSTICA_FAULT", "lost:1")
+        .env_remove("WAYLAND_DISPLAY")
+        .stdout(Stdio::null())
+        .stderr(std::fs::File::create(&stderr_path).unwrap());
+    let child = cmd.spawn().expect("cannot start caustica");
+    let (status, stderr) = finish(child, &stderr_path, Duration::from_secs(120), "view with a lost device");
+    let _ = std::fs::remove_file(&stderr_path);
+    assert_eq!(status.code(), Some(4), "{stderr}");
+    assert!(stderr.contains("device was lost"), "{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+}
+
 /// Real input through the X server (XTEST, as from a mouse and keyboard).
 mod input {
     use std::time::{Duration, Instant};

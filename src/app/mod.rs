@@ -22,11 +22,56 @@ mod worker;
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{bail, Context as _, Result};
+use anyhow::{Context as _, Result};
 
-use crate::gpu::{Context, ContextDesc, DeviceSelector};
-use crate::input::{fit_to_device, InputArgs, Prepared};
-use crate::render::Renderer;
+use crate::gpu::{Context, ContextDesc, DeviceSelector, GpuError};
+use crate::input::{fit_to_device, InputArgs, InputError, Prepared};
+use crate::render::{RenderError, Renderer};
+use crate::scene::PrepareError;
+use crate::{Classify, ExitClass};
+
+/// Why the viewer could not start, or stopped with an error.
+#[derive(Debug, thiserror::Error)]
+pub enum ViewError {
+    #[error(transparent)]
+    Input(#[from] InputError),
+    #[error(transparent)]
+    Gpu(#[from] GpuError),
+    #[error(transparent)]
+    Render(#[from] RenderError),
+    #[error(transparent)]
+    Prepare(#[from] PrepareError),
+    /// The display, the window or the panel, with their context.
+    #[error("{0:#}")]
+    Viewer(anyhow::Error),
+    /// A frame failed on the render thread (loading a frame of a series, or rendering) and
+    /// `--exit-after-idle` cannot settle without it.
+    #[error("render failed: {message}")]
+    Frame { message: String, class: ExitClass },
+    #[error("{0} Vulkan validation errors were reported")]
+    Validation(u64),
+}
+
+impl From<anyhow::Error> for ViewError {
+    fn from(e: anyhow::Error) -> Self {
+        ViewError::Viewer(e)
+    }
+}
+
+impl Classify for ViewError {
+    fn exit_class(&self) -> ExitClass {
+        match self {
+            ViewError::Input(e) => e.exit_class(),
+            ViewError::Gpu(e) => e.exit_class(),
+            ViewError::Render(e) => e.exit_class(),
+            ViewError::Prepare(e) => e.exit_class(),
+            // No display, or a window that cannot be painted.
+            ViewError::Viewer(_) => ExitClass::Input,
+            ViewError::Frame { class, .. } => *class,
+            ViewError::Validation(_) => ExitClass::Gpu,
+        }
+    }
+}
 
 /// `caustica view` options.
 #[derive(clap::Args, Debug)]
@@ -86,7 +131,7 @@ fn presets_dir() -> PathBuf {
 }
 
 /// Runs the viewer until the window is closed (or, with `--exit-after-idle`, settles).
-pub fn run(args: &ViewArgs) -> Result<()> {
+pub fn run(args: &ViewArgs) -> Result<(), ViewError> {
     let Prepared { mut prepared, notes } = args.input.prepare()?;
     for note in notes {
         eprintln!("{note}");
@@ -124,7 +169,7 @@ pub fn run(args: &ViewArgs) -> Result<()> {
     result.context("window event loop failed")?;
     let errors = ctx.validation_errors();
     if errors > 0 {
-        bail!("{errors} Vulkan validation errors were reported");
+        return Err(ViewError::Validation(errors));
     }
     Ok(())
 }

@@ -13,6 +13,7 @@ use std::time::Instant;
 
 use crate::render::{EnvMap, PreparedScene, RenderError, RenderRequest, RenderStats, RenderedImage, Renderer};
 use crate::scene::{Scene, VolumeSource};
+use crate::{Classify, ExitClass};
 
 use super::progressive::Job;
 
@@ -49,6 +50,8 @@ pub enum Reply {
     Failed {
         job: Option<Job>,
         message: String,
+        /// How the command line ends if this failure ends the viewer.
+        class: ExitClass,
     },
     Saved {
         path: PathBuf,
@@ -170,7 +173,7 @@ fn set_scene(
         if let Err(e) = loaded {
             // Back to the frame that was there: the next request for this one tries again.
             (prepared.scene.volume, prepared.volume, prepared.volume_info) = before;
-            return Err(e);
+            return Err(e.into());
         }
         let window = scene.window.unwrap_or(prepared.volume_info.default_window);
         send(Reply::Volume {
@@ -222,6 +225,7 @@ fn handle(
                 Err(e) => Reply::Failed {
                     job: Some(job),
                     message: e.to_string(),
+                    class: e.exit_class(),
                 },
             });
         }

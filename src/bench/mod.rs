@@ -16,7 +16,7 @@ use crate::gpu::Context;
 use crate::reference::photons::PhotonSettings;
 use crate::reference::{self, ReferenceError, ReferenceSettings};
 use crate::render::{PreparedScene, RenderError, RenderRequest, Renderer};
-use crate::scene::{builtin, Gradient, Precision, SceneError, VolumeSource};
+use crate::scene::{builtin, Gradient, Precision, PrepareError, SceneError, VolumeSource};
 
 pub use metrics::{compare, ImageError, Linear};
 pub use report::{write_csv, write_markdown};
@@ -26,6 +26,8 @@ pub enum BenchError {
     #[error(transparent)]
     Render(#[from] RenderError),
     #[error(transparent)]
+    Prepare(#[from] PrepareError),
+    #[error(transparent)]
     Reference(#[from] ReferenceError),
     #[error(transparent)]
     Scene(#[from] SceneError),
@@ -33,6 +35,18 @@ pub enum BenchError {
     Write { path: PathBuf, message: String },
     #[error("invalid bench plan: {0}")]
     Plan(String),
+}
+
+impl crate::Classify for BenchError {
+    fn exit_class(&self) -> crate::ExitClass {
+        match self {
+            BenchError::Render(e) => e.exit_class(),
+            BenchError::Prepare(e) => e.exit_class(),
+            BenchError::Reference(e) => e.exit_class(),
+            BenchError::Scene(e) => e.exit_class(),
+            BenchError::Write { .. } | BenchError::Plan(_) => crate::ExitClass::Input,
+        }
+    }
 }
 
 /// One point of the sweep: the knobs a user can turn.

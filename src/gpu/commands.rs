@@ -1,86 +1,78 @@
-//! One-shot command recording, submission with a fence, and GPU timestamps.
+//! One-shot command recording and submission with a fence.
+//!
+//! A [`Recorder<'r>`](Recorder) borrows every resource it records a use of for `'r`, and only
+//! [`Recorder::submit_and_wait`] (which consumes it once the GPU is done) or dropping it
+//! unsubmitted ends that borrow: safe code cannot drop, write or rebind what a pending command
+//! uses. Staging buffers it is handed as an `Arc` are kept alive the same way.
 
+use std::marker::PhantomData;
 use std::sync::Arc;
 
 use ash::vk;
 
 use super::error::{vk_err, GpuError};
-use super::{Buffer, ComputePipeline, Context, DescriptorSet, Image};
-
-/// A timestamp query pool; read after the submission that wrote it was waited for.
-pub struct Timestamps {
-    ctx: Arc<Context>,
-    pool: vk::QueryPool,
-    count: u32,
-}
-
-impl Timestamps {
-    pub fn new(ctx: &Arc<Context>, count: u32) -> Result<Self, GpuError> {
-        let info = vk::QueryPoolCreateInfo::default()
-            .query_type(vk::QueryType::TIMESTAMP)
-            .query_count(count);
-        // SAFETY: valid create info; destroyed in Drop.
-        let pool = unsafe { ctx.device.create_query_pool(&info, None) }.map_err(vk_err("vkCreateQueryPool"))?;
-        ctx.set_name(pool, "timestamps");
-        Ok(Timestamps {
-            ctx: ctx.clone(),
-            pool,
-            count,
-        })
-    }
-
-    /// Elapsed milliseconds between consecutive timestamps (`count - 1` values).
-    pub fn read_ms(&self) -> Result<Vec<f64>, GpuError> {
-        let mut ticks = vec![0u64; self.count as usize];
-        // SAFETY: the pool was written by a submission that has completed.
-        unsafe {
-            self.ctx.device.get_query_pool_results(
-                self.pool,
-                0,
-                &mut ticks,
-                vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT,
-            )
-        }
-        .map_err(vk_err("vkGetQueryPoolResults"))?;
-        let bits = {
-            // SAFETY: plain query on a valid physical device.
-            let families = unsafe {
-                self.ctx
-                    .instance
-                    .get_physical_device_queue_family_properties(self.ctx.physical)
-            };
-            families
-                .get(self.ctx.queue_family as usize)
-                .map(|f| f.timestamp_valid_bits)
-                .unwrap_or(64)
-        };
-        let mask = if bits >= 64 { u64::MAX } else { (1u64 << bits) - 1 };
-        let period = self.ctx.timestamp_period_ns();
-        Ok(ticks
-            .windows(2)
-            .map(|w| ((w[1].wrapping_sub(w[0])) & mask) as f64 * period / 1.0e6)
-            .collect())
-    }
-}
-
-impl Drop for Timestamps {
-    fn drop(&mut self) {
-        if self.ctx.is_hung() {
-            return;
-        }
-        // SAFETY: no pending submission uses the pool.
-        unsafe { self.ctx.device.destroy_query_pool(self.pool, None) };
-    }
-}
+use super::{Buffer, ComputePipeline, Context, DescriptorSet, Image, Timestamps};
 
 /// Records one command buffer; [`Recorder::submit_and_wait`] runs it to completion.
-pub struct Recorder {
+///
+/// Every resource a command uses is borrowed for `'r`, so it outlives the recorder, and the
+/// recorder is consumed only after the GPU has finished with it:
+///
+/// ```no_run
+/// # use std::sync::Arc;
+/// # use caustica::gpu::{Buffer, Context, Format, GpuError, Image, ImageDesc, Recorder};
+/// # fn demo(ctx: &Arc<Context>) -> Result<(), GpuError> {
+/// let image = Image::new(ctx, ImageDesc::storage_2d("target", Format::R32G32B32A32_SFLOAT, 8, 8))?;
+/// let mut readback = Buffer::new_readback(ctx, "readback", 8 * 8 * 16)?;
+/// let mut rec = Recorder::new(ctx, "clear and read")?;
+/// rec.init_layout(&[&image]);
+/// rec.copy_to_buffer(&image, &mut readback);
+/// rec.submit_and_wait()?;
+/// let _bytes = readback.read()?;
+/// drop(image);
+/// # Ok(()) }
+/// ```
+///
+/// Dropping the image while the recorder still holds the copy does not compile, and neither
+/// does reading the buffer the pending copy writes:
+///
+/// ```compile_fail,E0505
+/// # use std::sync::Arc;
+/// # use caustica::gpu::{Buffer, Context, Format, GpuError, Image, ImageDesc, Recorder};
+/// # fn demo(ctx: &Arc<Context>) -> Result<(), GpuError> {
+/// let image = Image::new(ctx, ImageDesc::storage_2d("target", Format::R32G32B32A32_SFLOAT, 8, 8))?;
+/// let mut readback = Buffer::new_readback(ctx, "readback", 8 * 8 * 16)?;
+/// let mut rec = Recorder::new(ctx, "clear and read")?;
+/// rec.init_layout(&[&image]);
+/// rec.copy_to_buffer(&image, &mut readback);
+/// drop(image); // error[E0505]: cannot move out of `image` because it is borrowed
+/// rec.submit_and_wait()?;
+/// # Ok(()) }
+/// ```
+///
+/// ```compile_fail,E0502
+/// # use std::sync::Arc;
+/// # use caustica::gpu::{Buffer, Context, Format, GpuError, Image, ImageDesc, Recorder};
+/// # fn demo(ctx: &Arc<Context>) -> Result<(), GpuError> {
+/// let image = Image::new(ctx, ImageDesc::storage_2d("target", Format::R32G32B32A32_SFLOAT, 8, 8))?;
+/// let mut readback = Buffer::new_readback(ctx, "readback", 8 * 8 * 16)?;
+/// let mut rec = Recorder::new(ctx, "clear and read")?;
+/// rec.init_layout(&[&image]);
+/// rec.copy_to_buffer(&image, &mut readback);
+/// let _bytes = readback.read()?; // error[E0502]: the pending copy borrows it mutably
+/// rec.submit_and_wait()?;
+/// # Ok(()) }
+/// ```
+pub struct Recorder<'r> {
     ctx: Arc<Context>,
     cmd: vk::CommandBuffer,
-    submitted: bool,
+    /// Buffers handed over as `Arc`s (staging): released with the recorder, after completion.
+    held: Vec<Arc<Buffer>>,
+    /// The resources the recorded commands use are borrowed for `'r`.
+    uses: PhantomData<&'r ()>,
 }
 
-impl Recorder {
+impl<'r> Recorder<'r> {
     pub fn new(ctx: &Arc<Context>, label: &str) -> Result<Self, GpuError> {
         let pool = ctx.command_pool.lock().map_err(|_| GpuError::Allocation {
             what: "command pool".into(),
@@ -98,7 +90,8 @@ impl Recorder {
         let rec = Recorder {
             ctx: ctx.clone(),
             cmd,
-            submitted: false,
+            held: Vec::new(),
+            uses: PhantomData,
         };
         // SAFETY: fresh command buffer in the initial state.
         unsafe { ctx.device.begin_command_buffer(cmd, &begin) }.map_err(vk_err("vkBeginCommandBuffer"))?;
@@ -110,7 +103,7 @@ impl Recorder {
     }
 
     /// Moves images from `UNDEFINED` (contents discarded) to `GENERAL`.
-    pub fn init_layout(&mut self, images: &[&Image]) {
+    pub fn init_layout(&mut self, images: &[&'r Image]) {
         let barriers: Vec<_> = images
             .iter()
             .map(|i| {
@@ -127,7 +120,8 @@ impl Recorder {
                     .subresource_range(Image::full_range(i.desc.mip_levels))
             })
             .collect();
-        // SAFETY: recording state; images alive until the submission completes.
+        // SAFETY: recording state; the images are borrowed for 'r, so they outlive the
+        // submission.
         unsafe {
             self.d().cmd_pipeline_barrier(
                 self.cmd,
@@ -143,7 +137,12 @@ impl Recorder {
 
     /// Copies tightly packed mip levels from `src` into an image in `GENERAL` layout.
     /// `levels` lists (byte offset in `src`, extent) per mip level, starting at level 0.
-    pub fn upload(&mut self, src: &Buffer, dst: &Image, levels: &[(u64, [u32; 3])]) {
+    /// The recorder keeps `src` until the submission completes, so a staging buffer may be
+    /// dropped by the caller at once.
+    pub fn upload(&mut self, src: &Arc<Buffer>, dst: &'r Image, levels: &[(u64, [u32; 3])]) {
+        if !self.held.iter().any(|h| Arc::ptr_eq(h, src)) {
+            self.held.push(src.clone());
+        }
         let regions: Vec<_> = levels
             .iter()
             .enumerate()
@@ -165,7 +164,8 @@ impl Recorder {
                 },
             })
             .collect();
-        // SAFETY: recording state; buffer and image alive until completion.
+        // SAFETY: recording state; `src` is held and `dst` borrowed until completion; the
+        // regions lie within both (the caller's contract on `levels`, checked by validation).
         unsafe {
             self.d()
                 .cmd_copy_buffer_to_image(self.cmd, src.raw, dst.raw, vk::ImageLayout::GENERAL, &regions)
@@ -210,7 +210,7 @@ impl Recorder {
         dst: vk::AccessFlags,
     ) {
         let barrier = [vk::MemoryBarrier::default().src_access_mask(src).dst_access_mask(dst)];
-        // SAFETY: recording state.
+        // SAFETY: recording state; a global memory barrier references no resource.
         unsafe {
             self.d().cmd_pipeline_barrier(
                 self.cmd,
@@ -225,30 +225,59 @@ impl Recorder {
     }
 
     /// Binds `pipeline` and `set`, pushes `push` and dispatches `groups` workgroups.
-    pub fn dispatch(&mut self, pipeline: &ComputePipeline, set: &DescriptorSet, push: &[u8], groups: [u32; 3]) {
+    ///
+    /// Fails when `push` is not the size of the pipeline's immediate block, or `set` was made
+    /// for another pipeline or leaves a binding unwritten.
+    pub fn dispatch(
+        &mut self,
+        pipeline: &'r ComputePipeline,
+        set: &'r DescriptorSet<'r>,
+        push: &[u8],
+        groups: [u32; 3],
+    ) -> Result<(), GpuError> {
+        if push.len() != pipeline.layout.immediate_bytes as usize {
+            return Err(GpuError::Shader {
+                name: pipeline.label.clone(),
+                message: format!(
+                    "{} bytes of immediates given, the shader declares {}",
+                    push.len(),
+                    pipeline.layout.immediate_bytes
+                ),
+            });
+        }
+        set.check_complete(pipeline)?;
         let d = &self.ctx.device;
-        // SAFETY: recording state; pipeline, layout and set alive until completion; push size
-        // matches the layout's range (checked by the caller through `push_constant_bytes`).
+        // SAFETY: recording state; the pipeline and the set (with everything written into it)
+        // are borrowed for 'r, so they outlive the submission; the set was allocated with this
+        // pipeline's set layout and every binding is written (checked above); `push` has the
+        // size of the layout's push-constant range (checked above).
         unsafe {
             d.cmd_bind_pipeline(self.cmd, vk::PipelineBindPoint::COMPUTE, pipeline.raw);
             d.cmd_bind_descriptor_sets(
                 self.cmd,
                 vk::PipelineBindPoint::COMPUTE,
-                pipeline.layout,
+                pipeline.pipeline_layout,
                 0,
                 &[set.raw],
                 &[],
             );
-            if pipeline.push_constant_bytes > 0 {
-                let n = (pipeline.push_constant_bytes as usize).min(push.len());
-                d.cmd_push_constants(self.cmd, pipeline.layout, vk::ShaderStageFlags::COMPUTE, 0, &push[..n]);
+            if !push.is_empty() {
+                d.cmd_push_constants(
+                    self.cmd,
+                    pipeline.pipeline_layout,
+                    vk::ShaderStageFlags::COMPUTE,
+                    0,
+                    push,
+                );
             }
             d.cmd_dispatch(self.cmd, groups[0], groups[1], groups[2]);
         }
+        Ok(())
     }
 
-    /// Copies mip 0 of a 2D image into a buffer, tightly packed.
-    pub fn copy_to_buffer(&mut self, src: &Image, dst: &Buffer) {
+    /// Copies mip 0 of a 2D image into a buffer, tightly packed. The buffer is borrowed
+    /// mutably: the host cannot read it before the copy has executed.
+    pub fn copy_to_buffer(&mut self, src: &'r Image, dst: &'r mut Buffer) {
         let region = vk::BufferImageCopy {
             buffer_offset: 0,
             buffer_row_length: 0,
@@ -266,7 +295,8 @@ impl Recorder {
                 depth: 1,
             },
         };
-        // SAFETY: recording state; both resources alive until completion.
+        // SAFETY: recording state; both resources are borrowed for 'r, so they outlive the
+        // submission.
         unsafe {
             self.d()
                 .cmd_copy_image_to_buffer(self.cmd, src.raw, vk::ImageLayout::GENERAL, dst.raw, &[region])
@@ -279,13 +309,14 @@ impl Recorder {
         );
     }
 
-    pub fn reset_timestamps(&mut self, ts: &Timestamps) {
-        // SAFETY: recording state; pool alive until completion.
+    pub fn reset_timestamps(&mut self, ts: &'r Timestamps) {
+        // SAFETY: recording state; the pool is borrowed for 'r, so it outlives the submission.
         unsafe { self.d().cmd_reset_query_pool(self.cmd, ts.pool, 0, ts.count) };
     }
 
-    pub fn timestamp(&mut self, ts: &Timestamps, index: u32) {
-        // SAFETY: recording state; index < count is the caller's contract, clamped here.
+    pub fn timestamp(&mut self, ts: &'r Timestamps, index: u32) {
+        // SAFETY: recording state; the pool is borrowed for 'r; the index is clamped to the
+        // pool's size.
         unsafe {
             self.d().cmd_write_timestamp(
                 self.cmd,
@@ -297,16 +328,19 @@ impl Recorder {
     }
 
     /// Ends recording, submits, and blocks until the GPU is done or the context's fence
-    /// timeout has passed ([`GpuError::Timeout`]; the device then counts as lost).
-    pub fn submit_and_wait(mut self) -> Result<(), GpuError> {
+    /// timeout has passed ([`GpuError::Timeout`]; the device then counts as lost). Consuming
+    /// the recorder ends its borrows only once the commands have executed (or, after a hang,
+    /// once everything they use is leaked; see the module contract).
+    pub fn submit_and_wait(self) -> Result<(), GpuError> {
         let ctx = self.ctx.clone();
         let d = &ctx.device;
         if ctx.is_lost() {
             return Err(GpuError::DeviceLost { call: "vkQueueSubmit" });
         }
         // SAFETY: the buffer is in the recording state; the fence is waited for and destroyed
-        // before returning, so everything referenced by the commands outlives their execution.
-        // On a timeout the fence and command buffer are leaked with the rest (see `Context`).
+        // before returning, so everything the commands borrow (for 'r, which outlasts `self`)
+        // or the recorder holds outlives their execution. On a timeout the fence and command
+        // buffer are leaked with the rest (see `Context`).
         unsafe {
             d.end_command_buffer(self.cmd).map_err(vk_err("vkEndCommandBuffer"))?;
             let (inject_lost, inject_hang) = ctx.injector.next_submission();
@@ -326,7 +360,6 @@ impl Recorder {
                 }
                 return Err(GpuError::vk("vkQueueSubmit", e));
             }
-            self.submitted = true;
             let timeout_ns = if inject_hang {
                 0
             } else {
@@ -355,15 +388,14 @@ impl Recorder {
     }
 }
 
-impl Drop for Recorder {
+impl Drop for Recorder<'_> {
     fn drop(&mut self) {
         if self.ctx.is_hung() {
-            return; // possibly still executing: leak
+            return; // possibly still executing: leak (held buffers leak in their own Drop)
         }
         if let Ok(pool) = self.ctx.command_pool.lock() {
             // SAFETY: the buffer is not pending: submit_and_wait waited, or it was never submitted.
             unsafe { self.ctx.device.free_command_buffers(*pool, &[self.cmd]) };
         }
-        let _ = self.submitted;
     }
 }

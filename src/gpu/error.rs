@@ -30,6 +30,24 @@ pub enum GpuError {
     Format(vk::Format, &'static str),
 }
 
+impl crate::Classify for GpuError {
+    fn exit_class(&self) -> crate::ExitClass {
+        use crate::ExitClass;
+        match self {
+            GpuError::NoLoader(_) | GpuError::NoDevice(_) | GpuError::DeviceNotFound { .. } => ExitClass::NoVulkan,
+            GpuError::Timeout { .. } => ExitClass::GpuHung,
+            GpuError::OutOfDeviceMemory { .. }
+            | GpuError::OutOfHostMemory { .. }
+            | GpuError::DeviceLost { .. }
+            | GpuError::Vulkan { .. }
+            | GpuError::Allocation { .. }
+            | GpuError::Shader { .. }
+            | GpuError::Limit { .. }
+            | GpuError::Format(..) => ExitClass::Gpu,
+        }
+    }
+}
+
 impl GpuError {
     /// Maps a raw Vulkan result of `call` to the error a user should see.
     pub(crate) fn vk(call: &'static str, result: vk::Result) -> Self {

@@ -1,13 +1,20 @@
 //! A thin, documented layer over `ash` (Vulkan 1.3). Nothing here knows what a volume is.
 //!
 //! # Contract
-//! * All `unsafe` Vulkan calls of the crate live in this module. Callers see safe types.
+//! * All `unsafe` Vulkan calls of the crate live in this module. Callers see safe types, and
+//!   no sequence of safe calls can make the GPU use a destroyed object.
 //! * [`Context`] owns the instance, the logical device, the one compute queue and the memory
-//!   allocator. It is shared through `Arc<Context>`; every resource ([`Buffer`], [`Image`],
+//!   allocator, each through a small RAII owner that holds an `Arc` of what it was made from.
+//!   The context is shared through `Arc<Context>`; every resource ([`Buffer`], [`Image`],
 //!   [`ComputePipeline`], ...) holds such an `Arc` and destroys its Vulkan object in `Drop`,
 //!   so the device always outlives what was created from it.
+//! * Lifetimes are in the types: a [`Recorder<'r>`](Recorder) borrows every resource it
+//!   records for `'r` (or holds an `Arc` of it), a [`DescriptorSet<'a>`](DescriptorSet)
+//!   borrows its pipeline and what is written into it, and a recorder gives its borrows back
+//!   only when [`Recorder::submit_and_wait`] has seen the GPU finish. Dropping or rewriting a
+//!   resource a pending command uses does not compile.
 //! * Synchronisation is explicit and coarse: work is recorded into one-shot command buffers
-//!   ([`Recorder`]) and [`Context::submit_and_wait`] blocks on a fence. Between dependent
+//!   ([`Recorder`]) and [`Recorder::submit_and_wait`] blocks on a fence. Between dependent
 //!   dispatches the recorder inserts a full compute→compute memory barrier. No resource is
 //!   used by two submissions at once because every submission is waited for. The wait is
 //!   bounded ([`FENCE_TIMEOUT`]): a device that does not finish counts as lost, further
@@ -27,15 +34,20 @@ mod commands;
 mod context;
 mod error;
 mod fault;
+mod instance;
 mod pipeline;
 mod resources;
 pub mod shader;
+mod timestamps;
 
-pub use commands::{Recorder, Timestamps};
-pub use context::{list_devices, Context, ContextDesc, DeviceInfo, DeviceSelector, FENCE_TIMEOUT};
+pub use commands::Recorder;
+pub use context::{Context, ContextDesc, DeviceSelector, FENCE_TIMEOUT};
 pub use error::GpuError;
 pub use fault::Faults;
-pub use pipeline::{Binding, BindingKind, ComputePipeline, DescriptorSet, Resource};
+pub use instance::{list_devices, DeviceInfo};
+pub use pipeline::{ComputePipeline, DescriptorSet, Resource};
 pub use resources::{Buffer, Image, ImageDesc, Sampler, SamplerDesc};
+pub use shader::{Binding, BindingKind, CompiledShader, ShaderLayout, ShaderSource};
+pub use timestamps::Timestamps;
 
 pub use ash::vk::Format;

@@ -86,6 +86,7 @@ pub struct Buffer {
     pub(crate) raw: vk::Buffer,
     allocation: Option<Allocation>,
     pub size: u64,
+    pub usage: vk::BufferUsageFlags,
     pub label: String,
 }
 
@@ -98,6 +99,17 @@ impl Buffer {
         usage: vk::BufferUsageFlags,
     ) -> Result<Self, GpuError> {
         Self::new(ctx, label, size, usage, MemoryLocation::CpuToGpu)
+    }
+
+    /// A buffer only the GPU reads and writes (storage buffers, counters), filled by copies
+    /// or shaders.
+    pub fn new_device(
+        ctx: &Arc<Context>,
+        label: &str,
+        size: u64,
+        usage: vk::BufferUsageFlags,
+    ) -> Result<Self, GpuError> {
+        Self::new(ctx, label, size, usage, MemoryLocation::GpuOnly)
     }
 
     /// A buffer the GPU writes and the CPU reads back.
@@ -123,29 +135,29 @@ impl Buffer {
             .usage(usage)
             .sharing_mode(vk::SharingMode::EXCLUSIVE);
         let d = &ctx.device;
-        // SAFETY: valid create info; the buffer is destroyed in Drop or on the error paths.
-        let raw = unsafe { d.create_buffer(&info, None) }.map_err(|e| oom_of(label, size, "vkCreateBuffer", e))?;
-        let requirements = unsafe { d.get_buffer_memory_requirements(raw) };
-        let allocation = match allocate(ctx, label, requirements, location, true) {
-            Ok(a) => a,
-            Err(e) => {
-                unsafe { d.destroy_buffer(raw, None) };
-                return Err(e);
-            }
-        };
-        if let Err(e) = unsafe { d.bind_buffer_memory(raw, allocation.memory(), allocation.offset()) } {
-            free(ctx, allocation);
-            unsafe { d.destroy_buffer(raw, None) };
-            return Err(GpuError::vk("vkBindBufferMemory", e));
-        }
-        ctx.set_name(raw, label);
-        Ok(Buffer {
+        // Filled in step by step: on an error `Drop` releases what was created (destroying a
+        // null handle does nothing).
+        let mut buffer = Buffer {
             ctx: ctx.clone(),
-            raw,
-            allocation: Some(allocation),
+            raw: vk::Buffer::null(),
+            allocation: None,
             size,
+            usage,
             label: label.to_string(),
-        })
+        };
+        // SAFETY: valid create info; the buffer is destroyed in Drop.
+        buffer.raw = unsafe { d.create_buffer(&info, None) }.map_err(|e| oom_of(label, size, "vkCreateBuffer", e))?;
+        // SAFETY: plain query on the live buffer.
+        let requirements = unsafe { d.get_buffer_memory_requirements(buffer.raw) };
+        let allocation = buffer
+            .allocation
+            .insert(allocate(ctx, label, requirements, location, true)?);
+        // SAFETY: the memory was allocated for this buffer's requirements and is not bound
+        // to anything else; it is freed after the buffer in Drop.
+        unsafe { d.bind_buffer_memory(buffer.raw, allocation.memory(), allocation.offset()) }
+            .map_err(vk_err("vkBindBufferMemory"))?;
+        ctx.set_name(buffer.raw, label);
+        Ok(buffer)
     }
 
     /// Copies `bytes` to the start of a mapped buffer.
@@ -187,7 +199,8 @@ impl Drop for Buffer {
         if self.ctx.is_hung() {
             return; // may still be in use by the hung submission: leak
         }
-        // SAFETY: all submissions using this buffer were waited for (see module contract).
+        // SAFETY: no pending submission uses the buffer: recorders borrow or hold it until
+        // their submission completed (see the module contract).
         unsafe { self.ctx.device.destroy_buffer(self.raw, None) };
         if let Some(a) = self.allocation.take() {
             free(&self.ctx, a);
@@ -285,24 +298,30 @@ impl Image {
             .sharing_mode(vk::SharingMode::EXCLUSIVE)
             .initial_layout(vk::ImageLayout::UNDEFINED);
         let d = &ctx.device;
-        // SAFETY: valid create info; objects are destroyed in Drop or on error paths below.
         let bytes = desc.extent.iter().map(|e| *e as u64).product::<u64>() * texel_bytes(desc.format);
-        let raw = unsafe { d.create_image(&info, None) }.map_err(|e| oom_of(&desc.label, bytes, "vkCreateImage", e))?;
-        let requirements = unsafe { d.get_image_memory_requirements(raw) };
-        let allocation = match allocate(ctx, &desc.label, requirements, MemoryLocation::GpuOnly, false) {
-            Ok(a) => a,
-            Err(e) => {
-                unsafe { d.destroy_image(raw, None) };
-                return Err(e);
-            }
+        // Filled in step by step: on an error `Drop` releases what was created (destroying a
+        // null handle does nothing).
+        let mut image = Image {
+            ctx: ctx.clone(),
+            raw: vk::Image::null(),
+            view: vk::ImageView::null(),
+            allocation: None,
+            desc,
         };
-        if let Err(e) = unsafe { d.bind_image_memory(raw, allocation.memory(), allocation.offset()) } {
-            free(ctx, allocation);
-            unsafe { d.destroy_image(raw, None) };
-            return Err(GpuError::vk("vkBindImageMemory", e));
-        }
+        let desc = &image.desc;
+        // SAFETY: valid create info; the image is destroyed in Drop.
+        image.raw =
+            unsafe { d.create_image(&info, None) }.map_err(|e| oom_of(&desc.label, bytes, "vkCreateImage", e))?;
+        // SAFETY: plain query on the live image.
+        let requirements = unsafe { d.get_image_memory_requirements(image.raw) };
+        let allocation = allocate(ctx, &desc.label, requirements, MemoryLocation::GpuOnly, false)?;
+        let allocation = image.allocation.insert(allocation);
+        // SAFETY: the memory was allocated for this image's requirements and is not bound to
+        // anything else; it is freed after the image in Drop.
+        unsafe { d.bind_image_memory(image.raw, allocation.memory(), allocation.offset()) }
+            .map_err(vk_err("vkBindImageMemory"))?;
         let view_info = vk::ImageViewCreateInfo::default()
-            .image(raw)
+            .image(image.raw)
             .view_type(if desc.dim3 {
                 vk::ImageViewType::TYPE_3D
             } else {
@@ -310,23 +329,11 @@ impl Image {
             })
             .format(desc.format)
             .subresource_range(Self::full_range(desc.mip_levels));
-        let view = match unsafe { d.create_image_view(&view_info, None) } {
-            Ok(v) => v,
-            Err(e) => {
-                free(ctx, allocation);
-                unsafe { d.destroy_image(raw, None) };
-                return Err(GpuError::vk("vkCreateImageView", e));
-            }
-        };
-        ctx.set_name(raw, &desc.label);
-        ctx.set_name(view, &format!("{} view", desc.label));
-        Ok(Image {
-            ctx: ctx.clone(),
-            raw,
-            view,
-            allocation: Some(allocation),
-            desc,
-        })
+        // SAFETY: the image is live and bound to memory; the view is destroyed in Drop.
+        image.view = unsafe { d.create_image_view(&view_info, None) }.map_err(vk_err("vkCreateImageView"))?;
+        ctx.set_name(image.raw, &image.desc.label);
+        ctx.set_name(image.view, &format!("{} view", image.desc.label));
+        Ok(image)
     }
 
     pub(crate) fn full_range(mip_levels: u32) -> vk::ImageSubresourceRange {
@@ -353,7 +360,9 @@ impl Drop for Image {
         if self.ctx.is_hung() {
             return; // may still be in use by the hung submission: leak
         }
-        // SAFETY: all submissions using this image were waited for (see module contract).
+        // SAFETY: no pending submission uses the image: recorders and descriptor sets borrow
+        // it until their submission completed (see the module contract). Null handles (a
+        // creation that failed half-way) are ignored by Vulkan.
         unsafe {
             self.ctx.device.destroy_image_view(self.view, None);
             self.ctx.device.destroy_image(self.raw, None);
@@ -412,7 +421,8 @@ impl Drop for Sampler {
         if self.ctx.is_hung() {
             return;
         }
-        // SAFETY: all submissions using this sampler were waited for.
+        // SAFETY: no pending submission uses the sampler: descriptor sets borrow it until
+        // their submission completed.
         unsafe { self.ctx.device.destroy_sampler(self.raw, None) };
     }
 }

@@ -6,8 +6,8 @@
 
 use glam::Vec3;
 
-use crate::render::ViewSetup;
 use crate::scene::Scene;
+use crate::scene::ViewSetup;
 use crate::transfer::{preintegrate, PreintegratedTables, TransferFunctions};
 use crate::volume::Volume;
 

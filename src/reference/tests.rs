@@ -322,3 +322,37 @@ fn fluence_grid_accounts_for_the_absorbed_power() {
         assert!(grid < 0.01, "channel {c}: grid integral off by {grid}");
     }
 }
+
+/// The reference judges the GPU renderer, so it must not share its code: it and the scene
+/// types it reads use only `scene`, `volume` and `transfer` (and the crate's error classes).
+#[test]
+fn the_reference_depends_only_on_scene_volume_and_transfer() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let mut files = vec![root.join("scene.rs")];
+    for dir in ["reference", "scene"] {
+        for entry in std::fs::read_dir(root.join(dir)).unwrap() {
+            files.push(entry.unwrap().path());
+        }
+    }
+    let allowed = ["scene", "volume", "transfer", "Classify", "ExitClass"];
+    let needle = concat!("crate", "::"); // not spelled out, so this line does not match itself
+    for file in files.iter().filter(|f| f.extension().is_some_and(|e| e == "rs")) {
+        let text = std::fs::read_to_string(file).unwrap();
+        for (i, line) in text.lines().enumerate() {
+            let code = line.split("//").next().unwrap_or("");
+            for (at, _) in code.match_indices(needle) {
+                let module: String = code[at + needle.len()..]
+                    .chars()
+                    .take_while(|c| c.is_alphanumeric() || *c == '_')
+                    .collect();
+                assert!(
+                    allowed.contains(&module.as_str()),
+                    "{}:{}: uses the crate module {module}",
+                    file.display(),
+                    i + 1
+                );
+            }
+        }
+    }
+    assert!(files.len() > 10, "found the sources ({} files)", files.len());
+}

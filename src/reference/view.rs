@@ -10,7 +10,7 @@ use rayon::prelude::*;
 use super::medium::{Medium, VolumeMedium};
 use super::photons::{self, DistantLight, LightGrid, PhotonSettings};
 use super::rk4::{self, Ray};
-use crate::render::{light_direction, EnvMap, PreparedScene, RenderedImage, ViewSetup};
+use crate::scene::{light_direction, EnvMap, PreparedScene, RenderedImage, ViewSetup};
 use crate::scene::{Environment, Projection};
 
 #[derive(Debug, thiserror::Error)]
@@ -19,6 +19,12 @@ pub enum ReferenceError {
     Unsupported(&'static str),
     #[error("cannot render this view: {0}")]
     Setup(String),
+}
+
+impl crate::Classify for ReferenceError {
+    fn exit_class(&self) -> crate::ExitClass {
+        crate::ExitClass::Input // a scene the reference cannot render
+    }
 }
 
 /// Accuracy knobs of the reference.

@@ -144,3 +144,11 @@ impl Features {
         }
     }
 }
+
+/// What a prepared scene needs of the renderer (an inherent method kept next to `Features`,
+/// so `scene` does not depend on `render`).
+impl crate::scene::PreparedScene {
+    pub fn features(&self) -> Features {
+        Features::for_scene(&self.scene, &self.tf)
+    }
+}

@@ -2,34 +2,30 @@
 //! the environment pass and read-back. [`Features`] says what a scene needs; the renderer
 //! allocates and runs only that.
 
-mod environment;
 mod features;
-mod geometry;
-mod output;
 mod params;
 pub mod safeguards;
 pub mod shaders;
 mod state;
 mod upload;
 
-pub use environment::{srgb_to_linear, EnvError, EnvMap};
 pub use features::{DebugView, Features};
-pub use geometry::{light_direction, ViewSetup, MAX_LIGHT_VALUE, MIN_LIGHT_DIR_Z, MIN_VIEW_DIR_Z};
-pub use geometry::{MAX_PLANES, NEAR_PLANE};
-pub use output::{linear_to_srgb, OutputError, RenderedImage};
 pub use params::{Immediates, Params};
+// What the renderer takes and gives lives in `scene` (GPU-free, shared with the CPU reference).
+pub use crate::scene::view::{light_direction, ViewSetup, MAX_LIGHT_VALUE, MIN_LIGHT_DIR_Z, MIN_VIEW_DIR_Z};
+pub use crate::scene::view::{MAX_PLANES, NEAR_PLANE};
+pub use crate::scene::{linear_to_srgb, srgb_to_linear, EnvError, EnvMap, OutputError, RenderedImage};
+pub use crate::scene::{PrepareError, PreparedScene, VolumeInfo};
+// The view geometry and the environment map under the names the passes use.
+use crate::scene::{environment, view as geometry};
 pub use upload::ETA_TABLE_SIZE;
 
 use std::collections::HashMap;
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
-use crate::gpu::shader::ShaderSource;
-use crate::gpu::{ComputePipeline, Context, GpuError};
-use crate::scene::{Environment, Precision, Scene, SceneError};
-use crate::transfer::TransferFunctions;
-use crate::volume::resample::{fitting_dims, resample};
-use crate::volume::{dims_text, Format, Histogram, Loaded, Volume, VolumeError, VolumeMeta};
+use crate::gpu::{ComputePipeline, Context, GpuError, ShaderSource};
+use crate::scene::{Environment, Precision, SceneError};
 
 use shaders::Pass;
 
@@ -40,7 +36,7 @@ pub enum RenderError {
     #[error(transparent)]
     Scene(#[from] SceneError),
     #[error(transparent)]
-    Volume(#[from] VolumeError),
+    Prepare(#[from] PrepareError),
     #[error(transparent)]
     Environment(#[from] EnvError),
     #[error("cannot render this view: {0}")]
@@ -50,137 +46,19 @@ pub enum RenderError {
     Cancelled,
 }
 
-/// A scene with its data loaded: volumes, transfer functions, environment image.
-pub struct PreparedScene {
-    pub scene: Scene,
-    pub volume: Arc<Volume>,
-    pub eta_volume: Option<Arc<Volume>>,
-    pub tf: TransferFunctions,
-    pub env: Option<EnvMap>,
-    /// What the volume's file said about it, and its histogram (computed once at load).
-    pub volume_info: VolumeInfo,
-}
-
-/// Metadata and histogram of the loaded volume, and the window used when the scene has none.
-#[derive(Clone, Debug)]
-pub struct VolumeInfo {
-    pub meta: VolumeMeta,
-    pub histogram: Histogram,
-    pub default_window: [f32; 2],
-}
-
-impl VolumeInfo {
-    fn of(loaded: &Loaded) -> VolumeInfo {
-        VolumeInfo {
-            meta: loaded.meta.clone(),
-            histogram: loaded.histogram.clone(),
-            default_window: loaded.default_window(),
+impl crate::Classify for RenderError {
+    fn exit_class(&self) -> crate::ExitClass {
+        match self {
+            RenderError::Gpu(e) => e.exit_class(),
+            RenderError::Scene(e) => e.exit_class(),
+            RenderError::Prepare(e) => e.exit_class(),
+            RenderError::Environment(e) => e.exit_class(),
+            // A view that cannot be rendered as asked (too many planes, an image larger than
+            // the device allows): the request is at fault, not the device.
+            RenderError::Setup(_) => crate::ExitClass::Input,
+            // Only interactive renders are cancelled; the command line never sees it.
+            RenderError::Cancelled => crate::ExitClass::Input,
         }
-    }
-}
-
-impl PreparedScene {
-    pub fn load(scene: &Scene) -> Result<Self, RenderError> {
-        scene.validate()?;
-        let loaded = scene.volume.open()?;
-        let volume_info = VolumeInfo::of(&loaded);
-        let volume = Arc::new(loaded.volume);
-        let eta_volume = match &scene.eta_volume {
-            Some(src) => {
-                let v = src.load()?;
-                let v = if v.dims == volume.dims {
-                    v
-                } else {
-                    log::warn!(
-                        "resampling the η volume from {} onto the volume's grid {}",
-                        dims_text(&v.dims),
-                        dims_text(&volume.dims)
-                    );
-                    resample(&v, volume.dims)?
-                };
-                Some(Arc::new(v))
-            }
-            None => None,
-        };
-        Ok(PreparedScene {
-            tf: scene.transfer_functions()?,
-            env: EnvMap::for_scene(&scene.environment)?,
-            scene: scene.clone(),
-            volume,
-            eta_volume,
-            volume_info,
-        })
-    }
-
-    pub fn from_parts(scene: Scene, volume: Volume, tf: TransferFunctions) -> Result<Self, RenderError> {
-        let loaded = Loaded::new(volume, VolumeMeta::new(Format::Procedural, None));
-        Ok(PreparedScene {
-            env: EnvMap::for_scene(&scene.environment)?,
-            scene,
-            volume_info: VolumeInfo::of(&loaded),
-            volume: Arc::new(loaded.volume),
-            eta_volume: None,
-            tf,
-        })
-    }
-
-    /// The data window mapped onto [0, 1] of the transfer functions: the scene's, or else
-    /// the volume's default (CT window for Hounsfield data, histogram percentiles for files,
-    /// the value range for procedural volumes).
-    pub fn window(&self) -> [f32; 2] {
-        self.scene.window.unwrap_or(self.volume_info.default_window)
-    }
-
-    /// Replaces the transfer functions with the default for this volume's histogram and units.
-    pub fn use_default_transfer(&mut self) {
-        self.tf = crate::transfer::default_for(&self.volume_info.meta, &self.volume_info.histogram, self.window());
-    }
-
-    /// Loads frame `k` of a time-series volume in place (the viewer's time slider). Call
-    /// [`PreparedScene::fit_to_device`] again afterwards if frames may exceed the device limits.
-    pub fn load_frame(&mut self, k: usize) -> Result<(), RenderError> {
-        self.scene.volume.set_frame(k);
-        let loaded = self.scene.volume.open()?;
-        self.volume_info = VolumeInfo::of(&loaded);
-        self.volume = Arc::new(loaded.volume);
-        Ok(())
-    }
-
-    /// Downsamples the volumes (and warns) when they exceed `max_dim` voxels along an axis or
-    /// `max_bytes` of 16-bit texture memory; with `allow` false that is an error instead.
-    /// Returns the new dims when the volume was downsampled.
-    pub fn fit_to_device(
-        &mut self,
-        max_dim: u32,
-        max_bytes: u64,
-        allow: bool,
-    ) -> Result<Option<[usize; 3]>, RenderError> {
-        // Each volume texel is 16 bits; a second volume for η doubles that.
-        let textures = if self.eta_volume.is_some() { 2 } else { 1 };
-        let max_voxels = (max_bytes / (2 * textures)).min(usize::MAX as u64) as usize;
-        let Some(dims) = fitting_dims(self.volume.dims, max_dim as usize, max_voxels) else {
-            return Ok(None);
-        };
-        let what = format!(
-            "the volume {} exceeds the device's limits ({max_dim} texels per axis, {} MiB for volume textures)",
-            dims_text(&self.volume.dims),
-            max_bytes >> 20
-        );
-        if !allow {
-            return Err(RenderError::Setup(format!(
-                "{what}; allow downsampling or use a smaller volume"
-            )));
-        }
-        log::warn!("{what}: downsampling to {}", dims_text(&dims));
-        self.volume = Arc::new(resample(&self.volume, dims)?);
-        if let Some(eta) = &self.eta_volume {
-            self.eta_volume = Some(Arc::new(resample(eta, dims)?));
-        }
-        Ok(Some(dims))
-    }
-
-    pub fn features(&self) -> Features {
-        Features::for_scene(&self.scene, &self.tf)
     }
 }
 
@@ -289,16 +167,9 @@ impl Renderer {
         for c in constants.iter_mut().filter(|c| c.0 == "SAFEGUARDS_OFF") {
             c.1 = safeguards_off as f64;
         }
-        let spirv = source.specialise("main", &constants)?;
+        let compiled = source.specialise("main", &constants)?;
         let label = format!("{} [{} {}]", pass.file(), features.describe(), precision.name());
-        let p = Arc::new(ComputePipeline::new(
-            &self.ctx,
-            &label,
-            &spirv,
-            "main",
-            &shaders::bindings(),
-            std::mem::size_of::<Immediates>() as u32,
-        )?);
+        let p = Arc::new(ComputePipeline::new(&self.ctx, &label, &compiled)?);
         self.pipelines.insert(key, p.clone());
         Ok(p)
     }

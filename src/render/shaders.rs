@@ -1,7 +1,7 @@
-//! The WGSL sources (embedded from `shaders/`), their passes and bindings.
+//! The WGSL sources (embedded from `shaders/`) and their passes. Bindings, the immediate block
+//! and workgroup sizes are read from the parsed modules (`gpu::ShaderLayout`), not kept here.
 
-use crate::gpu::shader::ShaderSource;
-use crate::gpu::{Binding, BindingKind, GpuError};
+use crate::gpu::{Format, GpuError, ShaderSource};
 use crate::scene::Precision;
 
 pub const COMMON: &str = include_str!("../../shaders/common.wgsl");
@@ -34,97 +34,22 @@ impl Pass {
         }
     }
 
-    /// The full source: shared declarations, optics helpers, then the pass. The storage
-    /// format of the write side of the state buffers follows `precision` (the read side is
-    /// format-agnostic).
-    pub fn source(self, precision: Precision) -> String {
-        let common = match precision {
-            Precision::F16 => COMMON.to_string(),
-            Precision::F32 => COMMON.replace("rgba16float", "rgba32float"),
-        };
-        format!("{common}\n{OPTICS}\n{}", self.body())
+    /// The full source: shared declarations, optics helpers, then the pass.
+    pub fn source(self) -> String {
+        format!("{COMMON}\n{OPTICS}\n{}", self.body())
     }
 
+    /// The parsed pass at `precision`: the storage format of the write side of the light,
+    /// colour and medium buffers (the alias [`COLOUR_STATE`]) follows it; the read side is
+    /// format-agnostic.
     pub fn parse(self, precision: Precision) -> Result<ShaderSource, GpuError> {
-        ShaderSource::parse(self.file(), &self.source(precision))
+        let source = ShaderSource::parse(self.file(), &self.source())?;
+        match precision {
+            Precision::F16 => Ok(source),
+            Precision::F32 => source.set_storage_format(COLOUR_STATE, Format::R32G32B32A32_SFLOAT),
+        }
     }
 }
 
-/// Binding slots, as declared in `shaders/common.wgsl`.
-pub mod slot {
-    pub const PARAMS: u32 = 0;
-    pub const VOLUME: u32 = 1;
-    pub const LINEAR_CLAMP: u32 = 2;
-    pub const VOLUME_SAMPLER: u32 = 3;
-    pub const ETA_VOLUME: u32 = 4;
-    pub const PARTICLE_TABLE: u32 = 5;
-    pub const MEDIUM_TABLE: u32 = 6;
-    pub const ETA_TABLE: u32 = 7;
-    pub const ENV: u32 = 8;
-    pub const ENV_SAMPLER: u32 = 9;
-    /// First of the six read-side state buffers; the write side follows at +6.
-    pub const STATE_IN: u32 = 10;
-    pub const STATE_OUT: u32 = 16;
-    pub const IMAGE_OUT: u32 = 22;
-}
-
-pub fn bindings() -> Vec<Binding> {
-    use BindingKind::*;
-    let mut b = vec![
-        Binding {
-            index: slot::PARAMS,
-            kind: Uniform,
-        },
-        Binding {
-            index: slot::VOLUME,
-            kind: SampledImage,
-        },
-        Binding {
-            index: slot::LINEAR_CLAMP,
-            kind: Sampler,
-        },
-        Binding {
-            index: slot::VOLUME_SAMPLER,
-            kind: Sampler,
-        },
-        Binding {
-            index: slot::ETA_VOLUME,
-            kind: SampledImage,
-        },
-        Binding {
-            index: slot::PARTICLE_TABLE,
-            kind: SampledImage,
-        },
-        Binding {
-            index: slot::MEDIUM_TABLE,
-            kind: SampledImage,
-        },
-        Binding {
-            index: slot::ETA_TABLE,
-            kind: SampledImage,
-        },
-        Binding {
-            index: slot::ENV,
-            kind: SampledImage,
-        },
-        Binding {
-            index: slot::ENV_SAMPLER,
-            kind: Sampler,
-        },
-    ];
-    for i in 0..6 {
-        b.push(Binding {
-            index: slot::STATE_IN + i,
-            kind: SampledImage,
-        });
-        b.push(Binding {
-            index: slot::STATE_OUT + i,
-            kind: StorageImage,
-        });
-    }
-    b.push(Binding {
-        index: slot::IMAGE_OUT,
-        kind: StorageImage,
-    });
-    b
-}
+/// The WGSL alias of the storage texture type whose texel format follows the precision.
+pub const COLOUR_STATE: &str = "ColourState";

@@ -12,7 +12,6 @@ use crate::gpu::{
 };
 
 use super::geometry::{light_direction, ViewSetup, MAX_LIGHT_VALUE, MIN_LIGHT_DIR_Z, MIN_VIEW_DIR_Z};
-use super::shaders::slot;
 use super::upload::{CachedTextures, SceneTextures, TexturesKey, ETA_TABLE_SIZE};
 use super::{
     background, DebugView, Features, Immediates, Params, PreparedScene, RenderError, RenderOutput, RenderRequest,
@@ -30,11 +29,21 @@ const TEXELS_PER_SUBMIT: u64 = 1 << 24;
 /// Pixel-planes per submission of a cancellable render (between 1 and 8 planes): a view
 /// change stops it within about one plane of a 1024×768 image.
 const PIXEL_PLANES_PER_SUBMIT_CANCELLABLE: u32 = 1 << 20;
-const WORKGROUP: u32 = 8;
 
-/// The six state buffers of Algorithm 1, in binding order, with their storage formats at
-/// `precision` (must match the storage formats of `shaders/common.wgsl` after
-/// [`super::shaders::Pass::source`]). Buffers the scene does not need get a 1×1 placeholder.
+/// The bindings of the six state buffers in `shaders/common.wgsl`, (read side, write side),
+/// in the order of [`state_formats`].
+const STATE_BINDINGS: [(&str, &str); 6] = [
+    ("light_in", "light_out"),
+    ("light_dir_in", "light_dir_out"),
+    ("view_pos_in", "view_pos_out"),
+    ("view_dir_in", "view_dir_out"),
+    ("color_in", "color_out"),
+    ("medium_in", "medium_out"),
+];
+
+/// The six state buffers of Algorithm 1 with their storage formats at `precision` (those the
+/// write-side bindings of [`super::shaders::Pass::parse`] declare; a test compares them).
+/// Buffers the scene does not need get a 1×1 placeholder.
 fn state_formats(precision: Precision) -> [(&'static str, Format); 6] {
     let colour = match precision {
         Precision::F16 => Format::R16G16B16A16_SFLOAT,
@@ -157,7 +166,6 @@ pub(super) fn run(
         1 + (req.debug_depth.clamp(0.0, 1.0) * (view.planes - 1) as f32).round() as u32
     };
 
-    let mut rec = Recorder::new(ctx, "render: upload and init")?;
     let window = prepared.window();
     let eta = match (&prepared.eta_volume, features.eta_volume) {
         (Some(v), true) => Some((v.as_ref(), v.value_range)),
@@ -166,11 +174,11 @@ pub(super) fn run(
     // Scene textures are kept between renders while what they hold is unchanged (an
     // interactive view changes mostly the camera and light).
     let key = TexturesKey::new(prepared, features.eta_volume);
+    let mut pending = None;
     if !cache.as_ref().is_some_and(|c| c.matches(&key)) {
         *cache = None; // free the old textures before allocating new ones
-        let textures = SceneTextures::upload(
+        let (textures, upload) = SceneTextures::upload(
             ctx,
-            &mut rec,
             vol,
             window,
             eta,
@@ -179,9 +187,10 @@ pub(super) fn run(
             prepared.env.as_ref(),
         )?;
         *cache = Some(CachedTextures::new(key, textures));
+        pending = Some(upload);
     }
     let cached = cache
-        .as_mut()
+        .as_ref()
         .ok_or_else(|| RenderError::Setup("internal: scene textures missing".into()))?;
 
     let mut uniform = Buffer::new_upload(
@@ -211,42 +220,51 @@ pub(super) fn run(
         }
     }
     let output = Image::new(ctx, ImageDesc::storage_2d("output", Format::R32G32B32A32_SFLOAT, w, h))?;
-    let mut all: Vec<&Image> = state.iter().flatten().collect();
-    all.push(&output);
-    rec.init_layout(&all);
+    let mut readback = Buffer::new_readback(ctx, "output readback", (w * h) as u64 * 16)?;
+    let ts = Timestamps::new(ctx, 2)?;
 
     // sets[p][r]: pipeline p, reading side r and writing side 1 - r.
     let mut sets: Vec<[DescriptorSet; 2]> = Vec::new();
     for p in pipelines {
         let make = |read: usize| -> Result<DescriptorSet, GpuError> {
-            let set = DescriptorSet::new(ctx, p, &format!("{} reads {}", p.label, ["A", "B"][read]))?;
+            let mut set = DescriptorSet::new(ctx, p, &format!("{} reads {}", p.label, ["A", "B"][read]))?;
             let t = &cached.textures;
             let mut writes = vec![
-                (slot::PARAMS, Resource::Uniform(&uniform)),
-                (slot::VOLUME, Resource::Image(&t.volume)),
-                (slot::LINEAR_CLAMP, Resource::Sampler(&t.linear_clamp)),
-                (slot::VOLUME_SAMPLER, Resource::Sampler(&t.volume_sampler)),
+                ("P", Resource::Buffer(&uniform)),
+                ("volume_tex", Resource::Image(&t.volume)),
+                ("linear_clamp", Resource::Sampler(&t.linear_clamp)),
+                ("volume_sampler", Resource::Sampler(&t.volume_sampler)),
                 (
-                    slot::ETA_VOLUME,
+                    "eta_volume_tex",
                     Resource::Image(t.eta_volume.as_ref().unwrap_or(&t.volume)),
                 ),
-                (slot::PARTICLE_TABLE, Resource::Image(&t.particle_table)),
-                (slot::MEDIUM_TABLE, Resource::Image(&t.medium_table)),
-                (slot::ETA_TABLE, Resource::Image(&t.eta_table)),
-                (slot::ENV, Resource::Image(&t.env)),
-                (slot::ENV_SAMPLER, Resource::Sampler(&t.env_sampler)),
-                (slot::IMAGE_OUT, Resource::Image(&output)),
+                ("particle_table", Resource::Image(&t.particle_table)),
+                ("medium_table", Resource::Image(&t.medium_table)),
+                ("eta_table", Resource::Image(&t.eta_table)),
+                ("env_tex", Resource::Image(&t.env)),
+                ("env_sampler", Resource::Sampler(&t.env_sampler)),
+                ("image_out", Resource::Image(&output)),
             ];
-            for (k, (input, output)) in state[read].iter().zip(&state[1 - read]).enumerate() {
-                writes.push((slot::STATE_IN + k as u32, Resource::Image(input)));
-                writes.push((slot::STATE_OUT + k as u32, Resource::Image(output)));
+            for ((input, output), (name_in, name_out)) in state[read].iter().zip(&state[1 - read]).zip(STATE_BINDINGS) {
+                writes.push((name_in, Resource::Image(input)));
+                writes.push((name_out, Resource::Image(output)));
             }
             set.write(&writes)?;
             Ok(set)
         };
         sets.push([make(0)?, make(1)?]);
     }
-    let groups = [w.div_ceil(WORKGROUP), h.div_ceil(WORKGROUP), 1];
+
+    // Everything the commands use is created above: the recorders borrow it.
+    let mut rec = Recorder::new(ctx, "render: upload and init")?;
+    if let Some(upload) = pending {
+        cached.textures.record_upload(&mut rec, upload);
+    }
+    let mut all: Vec<&Image> = state.iter().flatten().collect();
+    all.push(&output);
+    rec.init_layout(&all);
+
+    let groups = |p: &ComputePipeline| p.groups_for([w, h, 1]);
     let planes_per_submit = (TEXELS_PER_SUBMIT / (w as u64 * h as u64)).clamp(1, PLANES_PER_SUBMIT as u64) as u32;
     let push = |plane: u32| Immediates {
         plane_index: plane,
@@ -255,7 +273,12 @@ pub(super) fn run(
     };
 
     // Init writes side A (set reading B); plane i reads side (i-1) % 2.
-    rec.dispatch(&pipelines[0], &sets[0][1], bytemuck::bytes_of(&push(0)), groups);
+    rec.dispatch(
+        &pipelines[0],
+        &sets[0][1],
+        bytemuck::bytes_of(&push(0)),
+        groups(&pipelines[0]),
+    )?;
     rec.compute_to_compute();
     let bar = progress_bar(req.progress, planes_run as u64);
     let mut gpu_ms = 0.0;
@@ -278,32 +301,32 @@ pub(super) fn run(
             Some(r) => r,
             None => Recorder::new(ctx, "render: planes")?,
         };
-        let ts = Timestamps::new(ctx, 2)?;
         r.reset_timestamps(&ts);
         r.timestamp(&ts, 0);
         let end = (plane + chunk).min(planes_run);
         while plane < end {
             let read = ((plane - 1) % 2) as usize;
-            r.dispatch(&pipelines[1], &sets[1][read], bytemuck::bytes_of(&push(plane)), groups);
+            r.dispatch(
+                &pipelines[1],
+                &sets[1][read],
+                bytemuck::bytes_of(&push(plane)),
+                groups(&pipelines[1]),
+            )?;
             r.compute_to_compute();
             plane += 1;
         }
         let last = plane >= planes_run;
-        let readback = if last {
+        if last {
             let read = ((planes_run - 1) % 2) as usize;
             r.dispatch(
                 &pipelines[2],
                 &sets[2][read],
                 bytemuck::bytes_of(&push(planes_run)),
-                groups,
-            );
+                groups(&pipelines[2]),
+            )?;
             r.compute_to_transfer();
-            let buf = Buffer::new_readback(ctx, "output readback", (w * h) as u64 * 16)?;
-            r.copy_to_buffer(&output, &buf);
-            Some(buf)
-        } else {
-            None
-        };
+            r.copy_to_buffer(&output, &mut readback);
+        }
         r.timestamp(&ts, 1);
         r.submit_and_wait()?;
         cached.uploaded();
@@ -311,11 +334,11 @@ pub(super) fn run(
         if let Some(b) = &bar {
             b.set_position(plane as u64);
         }
-        if let Some(buf) = readback {
+        if last {
             if let Some(b) = bar {
                 b.finish_and_clear();
             }
-            let bytes = buf.read()?;
+            let bytes = readback.read()?;
             let pixels: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(bytes);
             return Ok(RenderOutput {
                 image: RenderedImage {
@@ -334,6 +357,39 @@ pub(super) fn run(
                     reductions: Vec::new(),
                 },
             });
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gpu::BindingKind;
+    use crate::render::shaders::Pass;
+
+    /// The image formats allocated for the state buffers are those the shaders declare for
+    /// their write side, at both precisions, and every state binding exists on both sides.
+    #[test]
+    fn state_formats_are_the_declared_ones() {
+        for precision in [Precision::F16, Precision::F32] {
+            for pass in Pass::ALL {
+                let source = pass.parse(precision).unwrap();
+                let layout = source.layout();
+                for ((name, format), (read, write)) in state_formats(precision).iter().zip(STATE_BINDINGS) {
+                    assert_eq!(
+                        layout.binding(read).map(|b| b.kind),
+                        Some(BindingKind::SampledImage),
+                        "{read}"
+                    );
+                    let Some(BindingKind::StorageImage { format: declared, .. }) =
+                        layout.binding(write).map(|b| b.kind)
+                    else {
+                        panic!("{write} is not a storage image in {pass:?}");
+                    };
+                    assert_eq!(declared, *format, "{name} at {precision:?} in {pass:?}");
+                }
+                assert_eq!(layout.immediate_bytes as usize, std::mem::size_of::<Immediates>());
+            }
         }
     }
 }

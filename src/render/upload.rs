@@ -1,5 +1,6 @@
 //! Scene data on the GPU: volume textures, pre-integrated tables, η table, environment map.
 
+use std::cell::Cell;
 use std::sync::Arc;
 
 use half::f16;
@@ -27,8 +28,13 @@ pub struct SceneTextures {
     pub linear_clamp: Sampler,
     pub volume_sampler: Sampler,
     pub env_sampler: Sampler,
-    /// Keeps the staging memory alive until the upload has executed.
-    staging: Option<Buffer>,
+}
+
+/// The contents of freshly created [`SceneTextures`], staged for [`SceneTextures::record_upload`].
+pub struct PendingUpload {
+    staging: Arc<Buffer>,
+    /// (index into [`SceneTextures::images`], (staging offset, extent) per mip level)
+    uploads: Vec<(usize, Levels)>,
 }
 
 /// Collects byte blobs into one staging buffer with aligned offsets.
@@ -63,18 +69,17 @@ fn volume_image(ctx: &Arc<Context>, label: &str, vol: &Volume) -> Result<Image, 
 }
 
 impl SceneTextures {
-    /// Creates the textures and records their upload into `rec`.
-    #[allow(clippy::too_many_arguments)]
+    /// Creates the textures and stages their contents; [`SceneTextures::record_upload`]
+    /// copies them in.
     pub fn upload(
         ctx: &Arc<Context>,
-        rec: &mut Recorder,
         volume: &Volume,
         window: [f32; 2],
         eta_volume: Option<(&Volume, [f32; 2])>,
         tf: &TransferFunctions,
         sample_distance: f32,
         env: Option<&EnvMap>,
-    ) -> Result<Self, GpuError> {
+    ) -> Result<(Self, PendingUpload), GpuError> {
         let mut staging = Staging::default();
         // (index into `images`, (staging offset, extent) per mip level)
         let mut uploads: Vec<(usize, Levels)> = Vec::new();
@@ -153,11 +158,6 @@ impl SceneTextures {
             ash::vk::BufferUsageFlags::TRANSFER_SRC,
         )?;
         buffer.write(&staging.bytes)?;
-        rec.init_layout(&images.iter().collect::<Vec<_>>());
-        for (index, levels) in &uploads {
-            rec.upload(&buffer, &images[*index], levels);
-        }
-        rec.transfer_to_compute();
 
         use ash::vk::SamplerAddressMode as A;
         let linear_clamp = Sampler::new(
@@ -195,7 +195,7 @@ impl SceneTextures {
         let medium_table = it.next().ok_or_else(missing)?;
         let eta_table = it.next().ok_or_else(missing)?;
         let env = it.next().ok_or_else(missing)?;
-        Ok(SceneTextures {
+        let textures = SceneTextures {
             volume,
             eta_volume,
             particle_table,
@@ -206,13 +206,33 @@ impl SceneTextures {
             linear_clamp,
             volume_sampler,
             env_sampler,
-            staging: Some(buffer),
-        })
+        };
+        let pending = PendingUpload {
+            staging: Arc::new(buffer),
+            uploads,
+        };
+        Ok((textures, pending))
     }
 
-    /// The upload has executed: the staging memory can go.
-    pub fn release_staging(&mut self) {
-        self.staging = None;
+    /// The images in the order [`PendingUpload`] indexes them (the order of creation).
+    fn images(&self) -> Vec<&Image> {
+        let mut images = vec![&self.volume];
+        images.extend(self.eta_volume.as_ref());
+        images.extend([&self.particle_table, &self.medium_table, &self.eta_table, &self.env]);
+        images
+    }
+
+    /// Records the copy of the staged contents into the textures. The recorder keeps the
+    /// staging memory until the copy has executed, then it goes.
+    pub fn record_upload<'r>(&'r self, rec: &mut Recorder<'r>, pending: PendingUpload) {
+        let images = self.images();
+        rec.init_layout(&images);
+        for (index, levels) in &pending.uploads {
+            if let Some(image) = images.get(*index) {
+                rec.upload(&pending.staging, image, levels);
+            }
+        }
+        rec.transfer_to_compute();
     }
 }
 
@@ -259,8 +279,9 @@ pub struct CachedTextures {
     key: TexturesKey,
     pub textures: SceneTextures,
     /// The upload commands have executed; until then (a render cancelled or failed before
-    /// its first submission) the textures hold nothing and must not be reused.
-    uploaded: bool,
+    /// its first submission) the textures hold nothing and must not be reused. A `Cell`, so
+    /// it can be set while the render's descriptor sets borrow the textures.
+    uploaded: Cell<bool>,
 }
 
 impl CachedTextures {
@@ -268,18 +289,17 @@ impl CachedTextures {
         CachedTextures {
             key,
             textures,
-            uploaded: false,
+            uploaded: Cell::new(false),
         }
     }
 
     pub fn matches(&self, key: &TexturesKey) -> bool {
-        self.uploaded && self.key.same(key)
+        self.uploaded.get() && self.key.same(key)
     }
 
     /// Called after a submission that contained the upload has completed.
-    pub fn uploaded(&mut self) {
-        self.uploaded = true;
-        self.textures.release_staging();
+    pub fn uploaded(&self) {
+        self.uploaded.set(true);
     }
 }
 

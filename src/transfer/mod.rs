@@ -50,6 +50,12 @@ pub enum TransferError {
     Empty { function: &'static str },
 }
 
+impl crate::Classify for TransferError {
+    fn exit_class(&self) -> crate::ExitClass {
+        crate::ExitClass::Input // every variant is a file or a function at fault
+    }
+}
+
 fn default_eta() -> Curve {
     Curve::constant(1.0)
 }

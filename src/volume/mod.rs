@@ -285,6 +285,12 @@ pub enum VolumeError {
     UnknownFormat { path: PathBuf },
 }
 
+impl crate::Classify for VolumeError {
+    fn exit_class(&self) -> crate::ExitClass {
+        crate::ExitClass::Input // every variant is a file or its data at fault
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

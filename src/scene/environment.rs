@@ -17,6 +17,12 @@ pub enum EnvError {
     Read { path: String, message: String },
 }
 
+impl crate::Classify for EnvError {
+    fn exit_class(&self) -> crate::ExitClass {
+        crate::ExitClass::Input // an unreadable environment image
+    }
+}
+
 /// Studio: bright sky gradient above a grey checkered floor with a soft horizon.
 fn studio(width: u32, height: u32) -> Vec<[f32; 4]> {
     let mut px = Vec::with_capacity((width * height) as usize);

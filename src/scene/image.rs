@@ -18,6 +18,12 @@ pub enum OutputError {
     Format(String),
 }
 
+impl crate::Classify for OutputError {
+    fn exit_class(&self) -> crate::ExitClass {
+        crate::ExitClass::Input // an output path that cannot be written
+    }
+}
+
 pub fn linear_to_srgb(c: f32) -> f32 {
     let c = c.clamp(0.0, 1.0);
     if c <= 0.0031308 {

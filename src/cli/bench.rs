@@ -1,0 +1,122 @@
+//! `caustica bench`: the speed–accuracy sweep, or the reference's convergence.
+
+use std::path::PathBuf;
+
+use anyhow::{anyhow, Context as _};
+
+use caustica::gpu::{Context, ContextDesc, DeviceSelector};
+use caustica::scene::{builtin, BUILTIN_SCENES};
+use caustica::{Classify, ExitClass};
+
+use crate::{input, Result};
+
+/// `bench` saw validation errors: its measurements are not trustworthy (exit code 4).
+#[derive(Debug, thiserror::Error)]
+#[error("{0} Vulkan validation errors were reported")]
+struct BenchValidationFailed(u64);
+
+impl Classify for BenchValidationFailed {
+    fn exit_class(&self) -> ExitClass {
+        ExitClass::Gpu
+    }
+}
+
+#[derive(clap::Args)]
+pub struct BenchArgs {
+    /// Built-in scenes, comma separated (default: all; see `caustica scenes`).
+    #[arg(long, value_delimiter = ',')]
+    scenes: Vec<String>,
+    /// A small sweep (40³ volumes, viewports up to 256²) that runs in minutes on lavapipe.
+    #[arg(long)]
+    quick: bool,
+    /// Directory for bench.md, bench.csv, bench.png and the reference images.
+    #[arg(long, default_value = "bench")]
+    out: PathBuf,
+    /// GPU frames per setting (default 5, or 3 with --quick).
+    #[arg(long)]
+    frames: Option<u32>,
+    /// Voxels along the longest axis of the built-in volumes (default 64, or 40 with --quick).
+    #[arg(long)]
+    resolution: Option<usize>,
+    /// Vulkan device: index or name substring (see `caustica devices`).
+    #[arg(long, default_value = "auto")]
+    device: String,
+    /// Instead of the sweep, measure the reference renderer's convergence (error against a
+    /// finer run of itself versus rays per voxel² and step length) on the first scene; no GPU.
+    #[arg(long)]
+    convergence: bool,
+}
+
+pub fn bench(args: &BenchArgs) -> Result<()> {
+    use caustica::bench::{self, Plan};
+    let scenes: Vec<String> = if args.scenes.is_empty() {
+        BUILTIN_SCENES.iter().map(|s| s.to_string()).collect()
+    } else {
+        args.scenes.clone()
+    };
+    for name in &scenes {
+        builtin(name)?;
+    }
+    let mut plan = if args.quick {
+        Plan::quick(scenes)
+    } else {
+        Plan::full(scenes)
+    };
+    if let Some(f) = args.frames {
+        if f == 0 {
+            return Err(input(anyhow!("--frames must be at least 1")));
+        }
+        plan.frames = f;
+    }
+    if let Some(r) = args.resolution {
+        plan.resolution = r;
+    }
+    if args.convergence {
+        let path = args.out.join("convergence.md");
+        std::fs::create_dir_all(&args.out)
+            .with_context(|| format!("creating {}", args.out.display()))
+            .map_err(input)?;
+        let runs: &[(f64, f64)] = if args.quick {
+            &[(1.0, 0.5), (4.0, 0.5), (16.0, 0.5), (16.0, 1.0), (16.0, 0.25)]
+        } else {
+            &[
+                (1.0, 0.25),
+                (4.0, 0.25),
+                (16.0, 0.25),
+                (64.0, 0.25),
+                (64.0, 1.0),
+                (64.0, 0.5),
+                (64.0, 0.125),
+            ]
+        };
+        let truth = if args.quick { (64.0, 0.125) } else { (256.0, 0.0625) };
+        bench::convergence::run(
+            &plan.scenes[0],
+            plan.resolution,
+            plan.reference_size,
+            runs,
+            truth,
+            &path,
+        )?;
+        print!("{}", read_report(&path).map_err(input)?);
+        eprintln!("wrote {}", path.display());
+        return Ok(());
+    }
+    let ctx = Context::new(&ContextDesc::from_env(DeviceSelector::parse(&args.device)))?;
+    let report = bench::run(ctx.clone(), &plan, &args.out, true)?;
+    print!("{}", read_report(&report.markdown).map_err(input)?);
+    eprintln!(
+        "wrote {}, {} and {}",
+        report.markdown.display(),
+        report.csv.display(),
+        report.plot.display()
+    );
+    if ctx.validation_errors() > 0 {
+        return Err(BenchValidationFailed(ctx.validation_errors()).into());
+    }
+    Ok(())
+}
+
+fn read_report(path: &std::path::Path) -> anyhow::Result<String> {
+    std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))
+}

@@ -1,0 +1,74 @@
+//! `caustica info`: what a volume file holds (dims, type, spacing, range, histogram, window).
+
+use std::path::PathBuf;
+
+use caustica::volume;
+
+use crate::Result;
+
+#[derive(clap::Args)]
+pub struct InfoArgs {
+    /// A volume file, a directory of DICOM files, or a time-series pattern with '*'.
+    input: PathBuf,
+    /// Rows of the histogram sketch.
+    #[arg(long, default_value_t = 16)]
+    histogram_rows: usize,
+}
+
+pub fn info(args: &InfoArgs) -> Result<()> {
+    let started = std::time::Instant::now();
+    let pattern = args.input.to_string_lossy().contains('*');
+    let loaded = if pattern {
+        let series = volume::series::Series::from_pattern(&args.input)?;
+        println!(
+            "time series: {} frames (showing frame 0: {})",
+            series.len(),
+            series.frames[0].display()
+        );
+        series.open_frame(0)?
+    } else {
+        volume::open(&args.input)?
+    };
+    let load_ms = started.elapsed().as_secs_f64() * 1e3;
+    let v = &loaded.volume;
+    let m = &loaded.meta;
+    let h = &loaded.histogram;
+    println!("file:        {}", args.input.display());
+    println!("format:      {}", m.format);
+    println!(
+        "dims:        {} ({} voxels)",
+        volume::dims_text(&v.dims),
+        v.voxel_count()
+    );
+    println!(
+        "scalar type: {}",
+        m.scalar.map_or("unknown".to_string(), |s| s.to_string())
+    );
+    println!("spacing:     {} × {} × {}", v.spacing[0], v.spacing[1], v.spacing[2]);
+    let e = v.extent();
+    println!("extent:      {} × {} × {}", e[0], e[1], e[2]);
+    println!("modality:    {}", m.modality.as_deref().unwrap_or("unknown"));
+    println!("units:       {}", m.units);
+    println!("value range: [{}, {}]", v.value_range[0], v.value_range[1]);
+    println!(
+        "percentiles: 0.5% {}  50% {}  99.5% {}",
+        h.tails[0],
+        h.quantile(0.5),
+        h.tails[1]
+    );
+    println!("window:      {:?} ({})", loaded.default_window(), loaded.window_rule());
+    let tf = caustica::transfer::default_for(m, h, loaded.default_window());
+    println!(
+        "default transfer functions: {}",
+        tf.name.as_deref().unwrap_or("automatic")
+    );
+    for note in &m.notes {
+        println!("note:        {note}");
+    }
+    println!("load time:   {load_ms:.0} ms");
+    println!("histogram ({} bins, log scale):", volume::histogram::HISTOGRAM_BINS);
+    for line in h.summary(args.histogram_rows) {
+        println!("  {line}");
+    }
+    Ok(())
+}

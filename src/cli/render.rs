@@ -1,0 +1,121 @@
+//! `caustica render`: a scene to a PNG or EXR image, refusing images the GPU got wrong.
+
+use std::path::PathBuf;
+
+use caustica::gpu::{Context, ContextDesc, DeviceSelector};
+use caustica::input::{fit_to_device, parse_size, InputArgs, Prepared};
+use caustica::render::{DebugView, RenderRequest, Renderer};
+use caustica::{Classify, ExitClass};
+
+use crate::Result;
+
+/// The validation layer reported errors: the render is not trustworthy (exit code 4).
+#[derive(Debug, thiserror::Error)]
+#[error(
+    "the Vulkan validation layer reported {count} error(s) during the render (first: {first}); not writing {output}"
+)]
+struct ValidationFailed {
+    count: u64,
+    first: String,
+    output: String,
+}
+
+impl Classify for ValidationFailed {
+    fn exit_class(&self) -> ExitClass {
+        ExitClass::Gpu
+    }
+}
+
+/// The image holds NaN, infinite or negative values: a renderer fault (exit code 4).
+#[derive(Debug, thiserror::Error)]
+#[error("the render produced {non_finite} non-finite and {negative} negative values; not writing {output}")]
+struct InvalidImage {
+    non_finite: usize,
+    negative: usize,
+    output: String,
+}
+
+impl Classify for InvalidImage {
+    fn exit_class(&self) -> ExitClass {
+        ExitClass::Gpu
+    }
+}
+
+#[derive(clap::Args)]
+pub struct RenderArgs {
+    #[command(flatten)]
+    input: InputArgs,
+    /// Output image: .png (8-bit sRGB) or .exr (linear float).
+    #[arg(short, long, default_value = "caustica.png")]
+    output: PathBuf,
+    /// Image size, WIDTHxHEIGHT.
+    #[arg(long, default_value = "512x512", value_parser = parse_size)]
+    size: (u32, u32),
+    /// Vulkan device: index or name substring (see `caustica devices`).
+    #[arg(long, default_value = "auto")]
+    device: String,
+    /// Write a diagnostic buffer instead of the image: light, light-direction, intensity, medium.
+    #[arg(long, value_parser = parse_debug_view)]
+    debug_view: Option<DebugView>,
+    /// Relative depth in [0, 1] of the plane shown by --debug-view.
+    #[arg(long, default_value_t = 0.5)]
+    at_depth: f32,
+    /// Print planes, ms per plane and total GPU time.
+    #[arg(long)]
+    timings: bool,
+}
+
+fn parse_debug_view(s: &str) -> Result<DebugView, String> {
+    DebugView::parse(s).ok_or_else(|| format!("'{s}': expected light, light-direction, intensity or medium"))
+}
+
+pub fn render(args: &RenderArgs) -> Result<()> {
+    let Prepared { mut prepared, notes } = args.input.prepare()?;
+    for note in notes {
+        eprintln!("{note}");
+    }
+    let ctx = Context::new(&ContextDesc::from_env(DeviceSelector::parse(&args.device)))?;
+    fit_to_device(&mut prepared, &ctx, !args.input.no_downsample)?;
+    let mut renderer = Renderer::new(ctx.clone())?;
+    let mut req = RenderRequest::new(args.size.0, args.size.1);
+    req.progress = true;
+    if let Some(v) = args.debug_view {
+        req.debug_view = v;
+        req.debug_depth = args.at_depth;
+    }
+    let out = renderer.render(&prepared, &req)?;
+    if ctx.validation_errors() > 0 {
+        return Err(ValidationFailed {
+            count: ctx.validation_errors(),
+            first: ctx.validation_messages().first().cloned().unwrap_or_default(),
+            output: args.output.display().to_string(),
+        }
+        .into());
+    }
+    let (non_finite, negative) = out.image.count_invalid();
+    if non_finite > 0 || negative > 0 {
+        return Err(InvalidImage {
+            non_finite,
+            negative,
+            output: args.output.display().to_string(),
+        }
+        .into());
+    }
+    out.image.save(&args.output)?;
+    let s = &out.stats;
+    if args.timings {
+        println!(
+            "device: {}\nfeatures: {}\nprecision: {}\nplanes: {} (integrated {})\nms per plane: {:.3}\ntotal GPU ms: {:.1}\nstate buffers: {:.1} MiB",
+            ctx.info.name,
+            s.features.describe(),
+            s.precision.name(),
+            s.planes,
+            s.planes_run,
+            s.ms_per_plane,
+            s.gpu_ms,
+            s.state_bytes as f64 / (1024.0 * 1024.0)
+        );
+    }
+    eprintln!("wrote {} ({}×{})", args.output.display(), args.size.0, args.size.1);
+    Ok(())
+}

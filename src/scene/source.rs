@@ -1,0 +1,111 @@
+//! Where a scene's data comes from: the volume (built in, a file, raw samples, a series) and
+//! the transfer functions (inline or a file).
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::transfer::TransferFunctions;
+use crate::volume::series::Series;
+use crate::volume::{self, raw::RawDesc, Format, Loaded, Volume, VolumeError, VolumeMeta};
+
+/// Where the volume comes from.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
+pub enum VolumeSource {
+    /// A procedural volume generated in code (`caustica scenes` lists them).
+    Builtin {
+        name: String,
+        #[serde(default = "default_resolution")]
+        resolution: usize,
+    },
+    /// A file whose format is known from its extension (see README, "Volume formats"), or a
+    /// directory holding a DICOM series.
+    File { path: PathBuf },
+    /// Raw samples: dims, scalar type, endianness and spacing given here.
+    Raw(RawDesc),
+    /// A time series: `files` in order, or the files matching `pattern` (one `*` in the file
+    /// name); `frame` is the one shown.
+    Series {
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        files: Vec<PathBuf>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        pattern: Option<PathBuf>,
+        #[serde(default)]
+        frame: usize,
+    },
+}
+
+fn default_resolution() -> usize {
+    128
+}
+
+impl VolumeSource {
+    pub fn load(&self) -> Result<Volume, VolumeError> {
+        self.open().map(|loaded| loaded.volume)
+    }
+
+    /// Loads the volume with its metadata and histogram.
+    pub fn open(&self) -> Result<Loaded, VolumeError> {
+        match self {
+            VolumeSource::Builtin { name, resolution } => Ok(Loaded::new(
+                volume::procedural::generate(name, *resolution)?,
+                VolumeMeta::new(Format::Procedural, None),
+            )),
+            VolumeSource::File { path } => volume::open(path),
+            VolumeSource::Raw(desc) => Ok(Loaded::new(
+                volume::raw::load_raw(desc)?,
+                VolumeMeta::new(Format::Raw, Some(desc.scalar)),
+            )),
+            VolumeSource::Series { frame, .. } => match self.series()? {
+                Some(series) => series.open_frame(*frame),
+                None => Err(VolumeError::Series("no frames".into())),
+            },
+        }
+    }
+
+    /// The frames of a time series; `None` for a single volume.
+    pub fn series(&self) -> Result<Option<Series>, VolumeError> {
+        let VolumeSource::Series { files, pattern, .. } = self else {
+            return Ok(None);
+        };
+        match (files.is_empty(), pattern) {
+            (false, None) => Series::from_list(files.clone()).map(Some),
+            (true, Some(p)) => Series::from_pattern(p).map(Some),
+            _ => Err(VolumeError::Series(
+                "give either files = [...] or pattern = \"...\"".into(),
+            )),
+        }
+    }
+
+    /// Selects frame `k` of a time series (no effect on a single volume).
+    pub fn set_frame(&mut self, k: usize) {
+        if let VolumeSource::Series { frame, .. } = self {
+            *frame = k;
+        }
+    }
+
+    pub(super) fn resolve_paths(&mut self, base: &Path) {
+        match self {
+            VolumeSource::File { path } => *path = base.join(&*path),
+            VolumeSource::Raw(desc) => desc.path = base.join(&desc.path),
+            VolumeSource::Series { files, pattern, .. } => {
+                for f in files.iter_mut() {
+                    *f = base.join(&*f);
+                }
+                if let Some(p) = pattern {
+                    *p = base.join(&*p);
+                }
+            }
+            VolumeSource::Builtin { .. } => {}
+        }
+    }
+}
+
+/// Transfer functions inline, or the path of a JSON file.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum TransferSource {
+    File(PathBuf),
+    Inline(TransferFunctions),
+}
