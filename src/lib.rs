@@ -14,11 +14,13 @@
 //! | [`render`] | the method on top of `gpu`: planes, propagation, environment, output; `Features` |
 //! | [`reference`] | CPU renderers used to check the GPU one; the independent reference (f64, photons) |
 //! | [`bench`] | the speed–accuracy sweep: GPU frame times and errors against the reference |
+//! | [`animate`] | frame sequences: tracks over a base scene, sharded and resumable runs, manifest, MP4 |
 //! | [`app`] | the interactive viewer (`caustica view`): winit window, egui panel, progressive frames |
 //!
-//! Each layer only calls the one below it: `main` and `app` use `render` + `scene`; `render` uses `gpu`;
+//! Each layer only calls the one below it: `main`, `animate` and `app` use `render` + `scene`; `render` uses `gpu`;
 //! nothing in `gpu` knows what a volume is.
 
+pub mod animate;
 pub mod app;
 pub mod bench;
 pub mod gpu;

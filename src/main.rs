@@ -78,6 +78,9 @@ enum Command {
     Render(Box<RenderArgs>),
     /// Open an interactive window: edit camera, light, transfer functions and quality.
     View(Box<caustica::app::ViewArgs>),
+    /// Render an animation (turntable, light sweep, time series, transfer-function and
+    /// clip-plane sweeps) to numbered frames or an MP4; splits across machines with --shard.
+    Animate(Box<caustica::animate::AnimateArgs>),
     /// List the built-in scenes.
     Scenes,
     /// List the Vulkan devices caustica sees.
@@ -354,6 +357,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::Render(args) => render(&args),
         Command::Bench(args) => bench(&args),
         Command::View(args) => caustica::app::run(&args),
+        Command::Animate(args) => caustica::animate::run_cli(&args).map_err(animate_error),
         Command::Info(args) => info(&args),
         Command::Scenes => {
             for name in BUILTIN_SCENES {
@@ -403,7 +407,21 @@ fn run(cli: Cli) -> Result<()> {
     }
 }
 
+/// Render and GPU errors of `animate` keep their own type, so they map to the same exit codes
+/// as `render`'s; the rest carry their code ([`caustica::animate::AnimateError::exit_code`]).
+fn animate_error(e: caustica::animate::AnimateError) -> anyhow::Error {
+    use caustica::animate::AnimateError;
+    match e {
+        AnimateError::Render(r) => r.into(),
+        AnimateError::Gpu(g) => g.into(),
+        other => other.into(),
+    }
+}
+
 fn exit_code(err: &anyhow::Error) -> u8 {
+    if let Some(e) = err.downcast_ref::<caustica::animate::AnimateError>() {
+        return e.exit_code();
+    }
     if err.downcast_ref::<ValidationFailed>().is_some() || err.downcast_ref::<InvalidImage>().is_some() {
         return EXIT_GPU;
     }
