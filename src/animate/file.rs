@@ -226,7 +226,7 @@ impl Animation {
 
     /// The normalised file text: the header comment and the animation as TOML.
     pub fn to_toml(&self) -> Result<String, AnimateError> {
-        let body = toml::to_string_pretty(self).map_err(|e| AnimateError::Invalid(e.to_string()))?;
+        let body = toml::to_string(self).map_err(|e| AnimateError::Invalid(e.to_string()))?;
         Ok(format!(
             "# caustica animation: render it with `caustica animate THIS_FILE -o DIR` (see README, \"Animations\")\n{body}"
         ))
