@@ -25,8 +25,14 @@ pub struct Status {
 /// Something the window must do after a frame of UI.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Action {
-    Screenshot { path: PathBuf, width: u32, height: u32 },
+    Screenshot {
+        path: PathBuf,
+        width: u32,
+        height: u32,
+    },
     SaveScene(PathBuf),
+    /// Save the recorded keyframes as an animation file.
+    SaveAnimation(PathBuf),
     Quit,
 }
 
@@ -56,6 +62,8 @@ pub struct ViewState {
     pub viewport: Rect,
     /// Rects of named widgets of the last frame (used by the headless tests to aim clicks).
     pub rects: HashMap<&'static str, Rect>,
+    /// Keyframes recorded for an animation file.
+    pub recorder: super::keyframes::Recorder,
 }
 
 /// Histogram bars: 64 bins of the volume's values over the window, log scale.
@@ -92,6 +100,7 @@ impl ViewState {
             series,
             viewport: Rect::NOTHING,
             rects: HashMap::new(),
+            recorder: Default::default(),
         })
     }
 
@@ -193,6 +202,9 @@ impl ViewState {
                 self.scene.volume.set_frame(frame - 1);
             }
         }
+        if pressed(Key::K, none) {
+            self.record_keyframe();
+        }
         if pressed(Key::P, none) || pressed(Key::F12, none) {
             actions.push(self.screenshot_action());
         }
@@ -285,6 +297,9 @@ impl ViewState {
         egui::CollapsingHeader::new("Save")
             .default_open(true)
             .show(ui, |ui| self.save_ui(ui, actions));
+        egui::CollapsingHeader::new("Animation")
+            .default_open(true)
+            .show(ui, |ui| self.animation_ui(ui, actions));
     }
 
     /// The time slider: the frame index (as `--time` takes it), "frame k of n" and its file.
@@ -535,6 +550,7 @@ pub const HELP: &[(&str, &str)] = &[
     ("Delete", "delete the selected control point"),
     ("P, F12", "screenshot (full quality, offscreen)"),
     ("Ctrl+S", "save scene"),
+    ("K", "record the view as an animation keyframe"),
     ("Tab", "show/hide the panel"),
     ("F1, H", "this help"),
     ("Esc, Q", "quit"),
