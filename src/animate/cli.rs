@@ -164,7 +164,7 @@ impl AnimateArgs {
 
     /// The animation file given as INPUT, with --frames, --fps, --size, --loop and the
     /// quality overrides applied.
-    fn from_file(&self, path: &Path) -> Result<Animation, AnimateError> {
+    fn animation_of_file(&self, path: &Path) -> Result<Animation, AnimateError> {
         let conflicting = self.track_options();
         if !conflicting.is_empty() {
             return Err(AnimateError::Usage(format!(
@@ -203,7 +203,7 @@ impl AnimateArgs {
     }
 
     /// An animation of the input scene with the tracks of the options; also the loaded scene.
-    fn from_input(&self) -> Result<(Animation, PreparedScene), AnimateError> {
+    fn animation_of_input(&self) -> Result<(Animation, PreparedScene), AnimateError> {
         let Prepared { prepared, notes } = self.input.prepare()?;
         for note in notes {
             eprintln!("{note}");
@@ -300,9 +300,9 @@ pub fn run(args: &AnimateArgs) -> Result<(), AnimateError> {
     }
     let file = args.input.input.as_deref().filter(|p| is_animation_file(p));
     let (animation, prepared) = match file {
-        Some(path) => (args.from_file(path)?, None),
+        Some(path) => (args.animation_of_file(path)?, None),
         None => {
-            let (a, p) = args.from_input()?;
+            let (a, p) = args.animation_of_input()?;
             (a, Some(p))
         }
     };

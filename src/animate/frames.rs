@@ -216,7 +216,7 @@ pub fn read_frame_hash(path: &Path, format: FrameFormat, decode: bool) -> Option
                 .other
                 .iter()
                 .find_map(|(k, v)| match v {
-                    AttributeValue::Text(t) if k.to_string() == HASH_KEY => Some(t.to_string()),
+                    AttributeValue::Text(t) if *k == *HASH_KEY => Some(t.to_string()),
                     _ => None,
                 })?;
             if decode {

@@ -54,7 +54,7 @@ impl ViewState {
                     path.display()
                 );
                 for note in notes {
-                    message.push_str("\n");
+                    message.push('\n');
                     message.push_str(&note);
                 }
                 message
