@@ -25,13 +25,8 @@ pub struct Status {
 /// Something the window must do after a frame of UI.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Action {
-    Screenshot {
-        path: PathBuf,
-        width: u32,
-        height: u32,
-    },
+    Screenshot { path: PathBuf, width: u32, height: u32 },
     SaveScene(PathBuf),
-    /// Save the recorded keyframes as an animation file.
     SaveAnimation(PathBuf),
     Quit,
 }
