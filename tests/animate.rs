@@ -152,6 +152,61 @@ fn three_frame_orbit_equals_three_renders() {
     assert!(frames[0] != frames[1] && frames[1] != frames[2], "the camera moves");
 }
 
+/// The ball-lens volume at 16³ with a clip plane and the given light and clip offset.
+fn swept_scene(polar: f32, azimuth: f32, offset: f32) -> String {
+    format!(
+        "transfer = {:?}\n[volume]\nkind = \"builtin\"\nname = \"ball-lens\"\nresolution = 16\n\
+         [light]\npolar_deg = {polar:?}\nazimuth_deg = {azimuth:?}\n[clip]\nnormal = [1.0, 0.0, 0.5]\noffset = {offset:?}\n",
+        tf_file("ball-lens.json")
+    )
+}
+
+/// Light and clip-plane sweeps combined: each frame equals `render` of the scene with the
+/// swept values, bit for bit.
+#[test]
+fn light_and_clip_sweeps_equal_renders_of_the_swept_scenes() {
+    let s = Scratch::new("sweeps");
+    s.write("base.toml", &swept_scene(0.0, 0.0, 0.0));
+    ok(
+        &s.0,
+        &[
+            "animate",
+            "base.toml",
+            "--light-polar",
+            "20,60",
+            "--light-azimuth",
+            "-30,30",
+            "--clip",
+            "0.5,-0.5",
+            "--frames",
+            "3",
+            "--size",
+            "20x20",
+            "--format",
+            "exr",
+            "-o",
+            "frames",
+        ],
+    );
+    let mut frames = Vec::new();
+    for (k, (polar, azimuth, offset)) in [(20.0, -30.0, 0.5), (40.0, 0.0, 0.0), (60.0, 30.0, -0.5)]
+        .into_iter()
+        .enumerate()
+    {
+        let name = format!("s{k}.toml");
+        s.write(&name, &swept_scene(polar, azimuth, offset));
+        let out = format!("render{k}.exr");
+        ok(&s.0, &["render", &name, "--size", "20x20", "-o", &out]);
+        let f = exr_pixels(&frame(&s.path("frames"), k as u32, "exr"));
+        assert!(f == exr_pixels(&s.path(&out)), "frame {k} differs from {name}");
+        frames.push(f);
+    }
+    assert!(
+        frames[0] != frames[1] && frames[1] != frames[2],
+        "light and clip plane move"
+    );
+}
+
 /// Shards 0/2 and 1/2 together equal the unsharded run (pixels, embedded hashes and
 /// manifest); `--check` sees what is missing; a resumed run renders only missing frames;
 /// a changed animation re-renders only the frames it changes and `--check` reports the
@@ -202,6 +257,15 @@ fn shards_equal_the_unsharded_run_and_resume_skips_present_frames() {
         fs::read(split.join("manifest.json")).unwrap()
     );
     assert_ne!(png_pixels(&frame(&all, 0, "png")), png_pixels(&frame(&all, 4, "png")));
+    // The animation file written next to the frames renders the same frames again.
+    ok(
+        &s.0,
+        &["animate", "all/animation.toml", "-o", "again", "--range", "4..4"],
+    );
+    assert_eq!(
+        fs::read(frame(&all, 4, "png")).unwrap(),
+        fs::read(frame(&s.path("again"), 4, "png")).unwrap()
+    );
 
     // Resume: only the deleted frame is rendered again; the others are left untouched.
     let mtime = |k| fs::metadata(frame(&split, k, "png")).unwrap().modified().unwrap();
