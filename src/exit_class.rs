@@ -8,6 +8,9 @@ pub enum ExitClass {
     /// Bad input: a missing or malformed file, scene or value, or a view that cannot be
     /// rendered as asked (exit 1).
     Input,
+    /// Options that do not fit together or do not fit the animation, found after parsing
+    /// (exit 2, the code of the argument parser's own usage errors).
+    Usage,
     /// No Vulkan: no loader, no suitable device, no device matching `--device`, or no
     /// validation layer when it is required (exit 3).
     NoVulkan,
@@ -24,6 +27,7 @@ impl ExitClass {
     pub fn code(self) -> u8 {
         match self {
             ExitClass::Input => 1,
+            ExitClass::Usage => 2,
             ExitClass::NoVulkan => 3,
             ExitClass::Gpu | ExitClass::GpuHung => 4,
         }
@@ -38,6 +42,7 @@ pub trait Classify {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::animate::AnimateError;
     use crate::app::ViewError;
     use crate::bench::BenchError;
     use crate::gpu::GpuError;
@@ -76,5 +81,40 @@ mod tests {
             ExitClass::Input
         );
         assert_eq!(RenderError::Setup("too many planes".into()).exit_class().code(), 1);
+    }
+
+    /// `animate` keeps its documented codes: usage 2, frames the GPU got wrong 4, a missing
+    /// ffmpeg or an incomplete folder 1, and wrapped render and GPU errors as for `render`.
+    #[test]
+    fn animate_errors_keep_their_codes() {
+        assert_eq!(AnimateError::Usage("--range 2..4".into()).exit_class().code(), 2);
+        let validation = AnimateError::Validation {
+            frame: 3,
+            count: 1,
+            first: String::new(),
+        };
+        assert_eq!(validation.exit_class().code(), 4);
+        let invalid = AnimateError::InvalidImage {
+            frame: 0,
+            non_finite: 1,
+            negative: 0,
+        };
+        assert_eq!(invalid.exit_class().code(), 4);
+        let incomplete = AnimateError::Incomplete {
+            dir: "f".into(),
+            animation: "f/animation.toml".into(),
+            missing: 1,
+            stale: 0,
+        };
+        assert_eq!(incomplete.exit_class().code(), 1);
+        assert_eq!(AnimateError::Render(lost()).exit_class().code(), 4);
+        let hung = AnimateError::Gpu(GpuError::Timeout { seconds: 120 });
+        assert_eq!(hung.exit_class(), ExitClass::GpuHung);
+        assert_eq!(
+            AnimateError::Gpu(GpuError::NoDevice(String::new())).exit_class().code(),
+            3
+        );
+        let volume = AnimateError::Prepare(PrepareError::Volume(VolumeError::NonFinite { count: 1 }));
+        assert_eq!(volume.exit_class(), ExitClass::Input);
     }
 }

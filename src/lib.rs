@@ -14,14 +14,16 @@
 //! | [`render`] | the method on top of `gpu`: plane sweep, propagation passes, scene textures; `Features` |
 //! | [`reference`] | CPU renderers used to check the GPU one; the independent reference (f64, photons), which uses only `scene`, `volume` and `transfer` |
 //! | [`bench`] | the speed–accuracy sweep: GPU frame times and errors against the reference |
+//! | [`animate`] | frame sequences: tracks over a base scene, sharded and resumable runs, manifest, MP4 |
 //! | [`app`] | the interactive viewer (`caustica view`): winit window, egui panel, progressive frames |
 //!
-//! Each layer only calls the one below it: `main` and `app` use `render` + `scene`; `render` uses `gpu`;
+//! Each layer only calls the one below it: `main`, `animate` and `app` use `render` + `scene`; `render` uses `gpu`;
 //! nothing in `gpu` knows what a volume is.
 
 mod exit_class;
 pub use exit_class::{Classify, ExitClass};
 
+pub mod animate;
 pub mod app;
 pub mod bench;
 // The one module with `unsafe` code (Cargo.toml denies it elsewhere): the documented layer

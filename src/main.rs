@@ -12,6 +12,7 @@ use caustica::gpu::list_devices;
 use caustica::scene::{builtin, BUILTIN_SCENES};
 use caustica::{volume, Classify, ExitClass};
 
+use cli::animate::AnimateArgs;
 use cli::bench::BenchArgs;
 use cli::info::InfoArgs;
 use cli::render::RenderArgs;
@@ -87,6 +88,9 @@ enum Command {
     Render(Box<RenderArgs>),
     /// Open an interactive window: edit camera, light, transfer functions and quality.
     View(Box<caustica::app::ViewArgs>),
+    /// Render an animation (turntable, light sweep, time series, transfer-function and
+    /// clip-plane sweeps) to numbered frames or an MP4; splits across machines with --shard.
+    Animate(Box<AnimateArgs>),
     /// List the built-in scenes.
     Scenes,
     /// List the Vulkan devices caustica sees.
@@ -119,6 +123,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::Render(args) => cli::render::render(&args),
         Command::Bench(args) => cli::bench::bench(&args),
         Command::View(args) => Ok(caustica::app::run(&args)?),
+        Command::Animate(args) => Ok(cli::animate::animate(&args)?),
         Command::Info(args) => cli::info::info(&args),
         Command::Scenes => {
             for name in BUILTIN_SCENES {

@@ -9,6 +9,7 @@
 //! the panel on the CPU ([`raster`]) into a softbuffer surface.
 
 pub mod controls;
+pub mod keyframes;
 pub mod panel;
 #[cfg(test)]
 mod panel_tests;

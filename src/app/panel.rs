@@ -29,6 +29,7 @@ pub struct Status {
 pub enum Action {
     Screenshot { path: PathBuf, width: u32, height: u32 },
     SaveScene(PathBuf),
+    SaveAnimation(PathBuf),
     Quit,
 }
 
@@ -58,6 +59,8 @@ pub struct ViewState {
     pub viewport: Rect,
     /// Rects of named widgets of the last frame (used by the headless tests to aim clicks).
     pub rects: HashMap<&'static str, Rect>,
+    /// Keyframes recorded for an animation file.
+    pub recorder: super::keyframes::Recorder,
 }
 
 /// Histogram bars: 64 bins of the volume's values over the window, log scale.
@@ -94,6 +97,7 @@ impl ViewState {
             series,
             viewport: Rect::NOTHING,
             rects: HashMap::new(),
+            recorder: Default::default(),
         })
     }
 
@@ -195,6 +199,9 @@ impl ViewState {
                 self.scene.volume.set_frame(frame - 1);
             }
         }
+        if pressed(Key::K, none) {
+            self.record_keyframe();
+        }
         if pressed(Key::P, none) || pressed(Key::F12, none) {
             actions.push(self.screenshot_action());
         }
@@ -263,6 +270,7 @@ pub const HELP: &[(&str, &str)] = &[
     ("Delete", "delete the selected control point"),
     ("P, F12", "screenshot (full quality, offscreen)"),
     ("Ctrl+S", "save scene"),
+    ("K", "record the view as an animation keyframe"),
     ("Tab", "show/hide the panel"),
     ("F1, H", "this help"),
     ("Esc, Q", "quit"),

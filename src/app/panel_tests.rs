@@ -291,3 +291,33 @@ fn time_slider_appears_for_a_series_and_selects_the_frame() {
     h.key(Key::PageUp, Modifiers::NONE);
     assert_eq!(h.state.frame(), 1);
 }
+
+/// `K` records the view; the Save animation button asks the window to save; the saved file
+/// is an animation whose first and last frames are the two recorded views.
+#[test]
+fn keyframes_recorded_with_k_save_an_animation_through_the_views() {
+    let mut h = Harness::with_screen(Vec2::new(1024.0, 2400.0));
+    h.key(Key::K, Modifiers::NONE);
+    let first = h.state.scene_for_render();
+    h.key(Key::ArrowRight, Modifiers::NONE);
+    h.key(Key::ArrowUp, Modifiers::NONE);
+    h.key(Key::K, Modifiers::NONE);
+    let second = h.state.scene_for_render();
+    assert_ne!(first.camera, second.camera, "the arrows orbit between the keyframes");
+    assert_eq!(h.state.recorder.keyframes, vec![first.clone(), second.clone()]);
+    h.state.recorder.frames_between = 3;
+    h.frame(vec![]);
+    let path = std::env::temp_dir().join(format!("caustica-keyframes-{}.toml", std::process::id()));
+    h.state.recorder.path = path.display().to_string();
+    let actions = h.click(h.rect("save animation").center(), PointerButton::Primary);
+    assert_eq!(actions, vec![Action::SaveAnimation(path.clone())]);
+    let message = h.state.save_animation(&path);
+    assert!(message.starts_with("saved"), "{message}");
+    let animation = crate::animate::Animation::load(&path).unwrap();
+    let _ = std::fs::remove_file(&path);
+    assert_eq!(animation.frames, 4);
+    let specs = animation.frame_specs().unwrap();
+    assert_eq!(specs[0].scene, first);
+    assert_eq!(specs[3].scene, second);
+    assert_ne!(specs[1].scene.camera, first.camera);
+}

@@ -221,6 +221,7 @@ impl App {
                     Err(e) => format!("cannot save {}: {e:#}", path.display()),
                 };
             }
+            Action::SaveAnimation(path) => self.state.status.message = self.state.save_animation(&path),
             Action::Screenshot { path, width, height } => {
                 self.state.status.message = format!("rendering {}×{} to {} ...", width, height, path.display());
                 self.worker.send(Request::Screenshot {

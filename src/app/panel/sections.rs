@@ -48,6 +48,9 @@ impl ViewState {
         egui::CollapsingHeader::new("Save")
             .default_open(true)
             .show(ui, |ui| self.save_ui(ui, actions));
+        egui::CollapsingHeader::new("Animation")
+            .default_open(true)
+            .show(ui, |ui| self.animation_ui(ui, actions));
     }
 
     /// The time slider: the frame index (as `--time` takes it), "frame k of n" and its file.
