@@ -35,6 +35,10 @@ const SG_GRADIENT_LENGTH: u32 = 1024u;   // MIN_GRADIENT_LENGTH
 const SG_DIRECTION_LENGTH: u32 = 2048u;  // MIN_DIRECTION_LENGTH
 const SG_SATURATION: u32 = 4096u;        // beams: accumulated light stops at ACC_SATURATED
 
+// Invocations per side of the square tiles of pixels and light-grid cells that workgroups
+// work on (render::shaders::Pass::TILE mirrors it).
+const TILE: u32 = 8u;
+
 fn guarded(bit: u32) -> bool {
     return (SAFEGUARDS_OFF & bit) == 0u;
 }
@@ -89,6 +93,7 @@ struct Params {
     beam_grid: vec4<u32>,            // light grid: width, height, tiles in x, workgroups
     rect: vec4<u32>,                 // pixels whose rays can meet the volume: x0, y0, x1, y1 (half-open)
     tiles: vec4<u32>,                // view tiles in x, view workgroups, workgroups per dispatch row (all passes), light channels
+    culling: vec4<u32>,              // bricks along x, y, z; 1 when view tiles are listed per plane (else all are dispatched)
 }
 
 struct Immediates {
@@ -140,6 +145,14 @@ struct Immediates {
 // Per plane: the tiles of the light grid that can still reach the image (origin tile x, y,
 // tiles per row, workgroups), computed on the CPU.
 @group(0) @binding(21) var<storage, read> light_window: array<vec4<u32>>;
+// Empty-space skipping (render/bricks.rs): per 8³ brick, 1 if anything in it absorbs or shows.
+@group(0) @binding(22) var<storage, read> bricks: array<u32>;
+// Per tile of the rect: view rays still alive.
+@group(0) @binding(23) var<storage, read_write> view_tiles: array<atomic<u32>>;
+// A ring of three lists of the view tiles a plane needs, and their indirect dispatch
+// arguments (x, y, z; x counts the tiles).
+@group(0) @binding(24) var<storage, read_write> tile_lists: array<u32>;
+@group(0) @binding(25) var<storage, read_write> tile_args: array<atomic<u32>>;
 
 var<immediate> I: Immediates;
 
@@ -428,6 +441,43 @@ fn grid_coords(p: vec3<f32>) -> vec2<f32> {
 struct LightSample {
     color: vec3<f32>,
     dir: vec3<f32>,
+}
+
+// Whether the slab between depths za and zb seen through the pixels [lo, hi) (pixel-edge
+// coordinates) meets a brick that absorbs or shows: the box around the slab's eight corners,
+// one voxel wider (trilinear sampling), in bricks. Conservative: a box over more than 64
+// bricks counts as visible.
+fn slab_visible(lo: vec2<f32>, hi: vec2<f32>, za: f32, zb: f32) -> bool {
+    let dims = vec3<f32>(1.0) / P.texel.xyz;
+    var vmin = vec3<f32>(1e30);
+    var vmax = vec3<f32>(-1e30);
+    for (var c = 0u; c < 8u; c++) {
+        let t = vec2<f32>(select(lo.x, hi.x, (c & 1u) == 1u), select(lo.y, hi.y, (c & 2u) == 2u)) - vec2<f32>(0.5);
+        let z = select(za, zb, (c & 4u) == 4u);
+        let v = volume_coord(unproject(t, z)) * dims;
+        vmin = min(vmin, v);
+        vmax = max(vmax, v);
+    }
+    if (any(vmax < vec3<f32>(-1.0)) || any(vmin > dims + vec3<f32>(1.0))) {
+        return false;
+    }
+    let nb = vec3<i32>(P.culling.xyz);
+    let b0 = clamp(vec3<i32>(floor((vmin - vec3<f32>(1.0)) / 8.0)), vec3<i32>(0), nb - vec3<i32>(1));
+    let b1 = clamp(vec3<i32>(floor((vmax + vec3<f32>(1.0)) / 8.0)), vec3<i32>(0), nb - vec3<i32>(1));
+    let span = b1 - b0 + vec3<i32>(1);
+    if (span.x * span.y * span.z > 64) {
+        return true;
+    }
+    for (var z = b0.z; z <= b1.z; z++) {
+        for (var y = b0.y; y <= b1.y; y++) {
+            for (var x = b0.x; x <= b1.x; x++) {
+                if (bricks[u32((z * nb.y + y) * nb.x + x)] != 0u) {
+                    return true;
+                }
+            }
+        }
+    }
+    return false;
 }
 
 // Pre-integrated segment from value a (front) to value b (back), length `ratio` × Δs.

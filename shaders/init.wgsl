@@ -1,11 +1,11 @@
 // Initialisation (Algorithm 1, line 1): light and view rays on plane 0.
 
-@compute @workgroup_size(64, 1, 1)
+@compute @workgroup_size(TILE * TILE, 1, 1)
 fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
     let group = wg.y * P.tiles.z + wg.x;
-    let local = vec2<u32>(li % 8u, li / 8u);
+    let local = vec2<u32>(li % TILE, li / TILE);
     if (group < P.beam_grid.w) {
-        let ij = vec2<u32>(group % P.beam_grid.z, group / P.beam_grid.z) * 8u + local;
+        let ij = vec2<u32>(group % P.beam_grid.z, group / P.beam_grid.z) * TILE + local;
         if (BEAMS) {
             beams_init(ij);
         } else {
@@ -14,9 +14,14 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) l
         return;
     }
     let vg = group - P.beam_grid.w;
+    if (vg == 0u && li < 3u) {
+        // The lists' indirect arguments: one row of workgroups (x counts the tiles).
+        atomicStore(&tile_args[li * 3u + 1u], 1u);
+        atomicStore(&tile_args[li * 3u + 2u], 1u);
+    }
     if (vg >= P.tiles.y) {
         return;
     }
-    let px = P.rect.xy + vec2<u32>(vg % P.tiles.x, vg / P.tiles.x) * 8u + local;
+    let px = P.rect.xy + vec2<u32>(vg % P.tiles.x, vg / P.tiles.x) * TILE + local;
     view_init(px);
 }

@@ -4,7 +4,7 @@
 // have complete light. Light lives in a ring of three planes. They are separate dispatches,
 // not two branches of one: a CPU driver runs every branch a workgroup's invocations take.
 
-@compute @workgroup_size(64, 1, 1)
+@compute @workgroup_size(TILE * TILE, 1, 1)
 fn light_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
     let k = dispatch_plane(wg);
     // The cells that can still reach the image on this plane or a later one: a window of
@@ -15,7 +15,7 @@ fn light_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_in
         return;
     }
     let tile = window.xy + vec2<u32>(group % window.z, group / window.z);
-    let ij = tile * 8u + vec2<u32>(li % 8u, li / 8u);
+    let ij = tile * TILE + vec2<u32>(li % TILE, li / TILE);
     if (BEAMS) {
         beams_step(ij, k);
     } else {
@@ -23,21 +23,25 @@ fn light_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_in
     }
 }
 
-@compute @workgroup_size(64, 1, 1)
+// Pixel of invocation `li` of rect tile `tile`.
+fn tile_pixel(tile: u32, li: u32) -> vec2<u32> {
+    return P.rect.xy + vec2<u32>(tile % P.tiles.x, tile / P.tiles.x) * TILE + vec2<u32>(li % TILE, li / TILE);
+}
+
+@compute @workgroup_size(TILE * TILE, 1, 1)
 fn view_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
     let k = dispatch_plane(wg);
     let group = wg.y * P.tiles.z + wg.x;
-    if (group >= P.tiles.y) {
+    var tile = group;
+    if (k >= 2u && P.culling.w == 1u) {
+        // Only the tiles listed for this plane were dispatched (indirect).
+        tile = tile_lists[(k % 3u) * P.tiles.y + group];
+    } else if (group >= P.tiles.y) {
         return;
     }
-    let px = P.rect.xy + vec2<u32>(group % P.tiles.x, group / P.tiles.x) * 8u + vec2<u32>(li % 8u, li / 8u);
+    let px = tile_pixel(tile, li);
     if (!in_rect(vec2<i32>(px))) {
         return;
-    }
-    if (BEAMS && REFRACTION) {
-        // Plane k+1 deposits into the slot that plane k-2 used; its last reader was the view
-        // dispatch of plane k-1.
-        acc_clear((k + 1u) % 3u, px);
     }
     if (DEBUG_VIEW == 1u || DEBUG_VIEW == 2u || DEBUG_VIEW == 3u) {
         return; // light diagnostics need no view rays
@@ -45,6 +49,50 @@ fn view_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_ind
     if (k == 1u) {
         view_first_light(px);
     } else if (k >= 2u) {
-        view_step(px, k - 1u);
+        view_step(px, k - 1u, tile);
     }
+}
+
+// Per rect tile, one workgroup: the pixels clear the light slot the next plane deposits into,
+// and the first invocation lists the tile for plane k+1 if it needs it: a ray alive whose
+// next segment (or the one after, so that a ray is stepped onto the plane before it has
+// something to composite) meets a visible brick. Refracted rays can be anywhere: they only
+// need to be alive. Written while plane k runs, so a tile whose last ray dies on plane k may
+// be listed once more (its invocations then find nothing to do).
+@compute @workgroup_size(TILE * TILE, 1, 1)
+fn tiles_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
+    let k = dispatch_plane(wg);
+    let t = wg.y * P.tiles.z + wg.x;
+    if (t >= P.tiles.y) {
+        return;
+    }
+    if (BEAMS && REFRACTION) {
+        // Plane k+1 deposits into the slot that plane k-2 used; its last reader was the view
+        // dispatch of plane k-1. Every tile clears, listed or not: deposits land anywhere.
+        let px = tile_pixel(t, li);
+        if (in_rect(vec2<i32>(px))) {
+            acc_clear((k + 1u) % 3u, px);
+        }
+    }
+    if (li != 0u || P.culling.w == 0u) {
+        return;
+    }
+    if (t == 0u) {
+        // The list after next starts empty (its last reader was plane k-1).
+        atomicStore(&tile_args[((k + 2u) % 3u) * 3u], 0u);
+    }
+    if (atomicLoad(&view_tiles[t]) == 0u) {
+        return;
+    }
+    if (!REFRACTION) {
+        let lo = vec2<f32>(P.rect.xy + vec2<u32>(t % P.tiles.x, t / P.tiles.x) * TILE);
+        let last = u32(P.plane.z) - 1u;
+        let za = plane_z(min(k - 1u, last));
+        let zb = plane_z(min(k + 1u, last));
+        if (!slab_visible(lo, lo + vec2<f32>(f32(TILE)), za, zb)) {
+            return;
+        }
+    }
+    let slot = atomicAdd(&tile_args[((k + 1u) % 3u) * 3u], 1u);
+    tile_lists[((k + 1u) % 3u) * P.tiles.y + slot] = t;
 }

@@ -16,10 +16,17 @@ fn view_position(px: vec2<u32>, i: u32, k: u32) -> vec3<f32> {
     return unproject(vec2<f32>(px), plane_z(k));
 }
 
+// The rect tile of pixel px.
+fn pixel_tile(px: vec2<u32>) -> u32 {
+    let t = (px - P.rect.xy) / TILE;
+    return t.y * P.tiles.x + t.x;
+}
+
 fn view_init(px: vec2<u32>) {
     if (!in_rect(vec2<i32>(px))) {
         return;
     }
+    atomicAdd(&view_tiles[pixel_tile(px)], 1u);
     let i = pixel_index(px);
     let t = vec2<f32>(px);
     let x = unproject(t, P.plane.x);
@@ -32,7 +39,8 @@ fn view_init(px: vec2<u32>) {
         v = entering(d, eta);
         view_ray[i] = vec4<f32>(x.xy, v.xy);
     }
-    // w of aux: η where the ray is (the front of its next segment).
+    // z of aux: the plane the ray is on, plus one (0 once it has ended); w: η where the ray is
+    // (the front of its next segment).
     view_aux[i] = vec4<f32>(v.z, sample_value(x), 1.0, eta);
     store_view_color(i, vec4<f32>(0.0));
     if (MEDIUM) {
@@ -46,13 +54,23 @@ fn view_first_light(px: vec2<u32>) {
     store_view_light(i, vec4<f32>(light_at(0u, view_position(px, i, 0u)).color, 0.0));
 }
 
+// The ray of pixel i (in rect tile `tile`) ends.
+fn view_end(i: u32, tile: u32, aux: vec4<f32>) {
+    view_aux[i] = vec4<f32>(aux.xy, 0.0, aux.w);
+    atomicSub(&view_tiles[tile], 1u);
+}
+
 // One segment from plane k-1 to plane k.
-fn view_step(px: vec2<u32>, k: u32) {
+fn view_step(px: vec2<u32>, k: u32, tile: u32) {
     let i = pixel_index(px);
     var aux = view_aux[i];
     if (aux.z <= 0.0) {
         return;
     }
+    // A ray skipped on the planes before (its tile was in empty space) has no fresh front
+    // value or light: its last segment was empty, so the end's value and light stand in for
+    // them (the segment contributes nothing either way).
+    let skipped = u32(aux.z) != k;
     let ds = P.plane.y;
     let z = plane_z(k);
     let x0 = view_position(px, i, k - 1u);
@@ -64,19 +82,19 @@ fn view_step(px: vec2<u32>, k: u32) {
     if (dir.z < P.limits.y && guarded(SG_VIEW_MIN_Z)) {
         // The ray turned (nearly) parallel to the planes or back toward the camera: it leaves
         // the sweep here and keeps its direction for the environment lookup.
-        aux.z = 0.0;
-        view_aux[i] = aux;
+        view_end(i, tile, aux);
         return;
     }
     // Eq. 8 position update, ending on the next plane (Algorithm 1, line 32).
     let x1 = x0 + dir * ((z - x0.z) / dir.z);
     let value1 = sample_value(x1);
+    let value0 = select(aux.y, value1, skipped);
     let ratio = length(x1 - x0) / ds;
-    let s = segment_particles(aux.y, value1, ratio, is_clipped(0.5 * (x0 + x1)));
+    let s = segment_particles(value0, value1, ratio, is_clipped(0.5 * (x0 + x1)));
     // Diffuse light over the segment: the mean of its two ends (trapezoid rule); the front
     // end alone makes surfaces facing the light too bright.
-    let l0 = load_view_light(i).rgb;
     let l1 = light_at(k, x1);
+    let l0 = select(load_view_light(i).rgb, l1.color, skipped);
     let i_d = 0.5 * (l0 + l1.color) * P.light_color.rgb;
     var color = load_view_color(i);
     var medium = vec3<f32>(1.0);
@@ -122,7 +140,7 @@ fn view_step(px: vec2<u32>, k: u32) {
         color = vec4<f32>(min(color.rgb, vec3<f32>(MAX_RADIANCE)), color.a);
     }
     if (MEDIUM) {
-        medium *= segment_medium(aux.y, value1, ratio);
+        medium *= segment_medium(value0, value1, ratio);
         store_view_medium(i, vec4<f32>(medium, 1.0));
     }
     if (REFRACTION) {
@@ -133,12 +151,14 @@ fn view_step(px: vec2<u32>, k: u32) {
         aux.w = ix.eta;
     }
     aux.y = value1;
+    aux.z = f32(k + 1u);
+    store_view_color(i, color);
+    store_view_light(i, vec4<f32>(l1.color, 0.0));
     // Early termination once nothing behind can show through.
     let through = (1.0 - color.a) * max(medium.r, max(medium.g, medium.b));
     if (through < 1.0 - P.shading.z) {
-        aux.z = 0.0;
+        view_end(i, tile, aux);
+    } else {
+        view_aux[i] = aux;
     }
-    view_aux[i] = aux;
-    store_view_color(i, color);
-    store_view_light(i, vec4<f32>(l1.color, 0.0));
 }

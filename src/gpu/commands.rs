@@ -224,17 +224,10 @@ impl<'r> Recorder<'r> {
         };
     }
 
-    /// Binds `pipeline` and `set`, pushes `push` and dispatches `groups` workgroups.
-    ///
-    /// Fails when `push` is not the size of the pipeline's immediate block, or `set` was made
-    /// for another pipeline or leaves a binding unwritten.
-    pub fn dispatch(
-        &mut self,
-        pipeline: &'r ComputePipeline,
-        set: &'r DescriptorSet<'r>,
-        push: &[u8],
-        groups: [u32; 3],
-    ) -> Result<(), GpuError> {
+    /// Binds `pipeline` and `set` and pushes `push`, after the checks the types cannot make:
+    /// `push` has the pipeline's immediate size, and `set` was made for this pipeline with
+    /// every binding written.
+    fn bind(&mut self, pipeline: &'r ComputePipeline, set: &'r DescriptorSet<'r>, push: &[u8]) -> Result<(), GpuError> {
         if push.len() != pipeline.layout.immediate_bytes as usize {
             return Err(GpuError::Shader {
                 name: pipeline.label.clone(),
@@ -270,9 +263,61 @@ impl<'r> Recorder<'r> {
                     push,
                 );
             }
-            d.cmd_dispatch(self.cmd, groups[0], groups[1], groups[2]);
         }
         Ok(())
+    }
+
+    /// Binds `pipeline` and `set`, pushes `push` and dispatches `groups` workgroups.
+    ///
+    /// Fails when `push` is not the size of the pipeline's immediate block, or `set` was made
+    /// for another pipeline or leaves a binding unwritten.
+    pub fn dispatch(
+        &mut self,
+        pipeline: &'r ComputePipeline,
+        set: &'r DescriptorSet<'r>,
+        push: &[u8],
+        groups: [u32; 3],
+    ) -> Result<(), GpuError> {
+        self.bind(pipeline, set, push)?;
+        // SAFETY: recording state with a compute pipeline and its set bound above.
+        unsafe { self.d().cmd_dispatch(self.cmd, groups[0], groups[1], groups[2]) };
+        Ok(())
+    }
+
+    /// Like [`Recorder::dispatch`], with the workgroup counts read by the device from `args`
+    /// at byte `offset` (three u32: x, y, z), written by an earlier dispatch; see
+    /// [`Recorder::compute_to_indirect`]. Fails when the offset is not a multiple of 4 or the
+    /// three words do not fit.
+    pub fn dispatch_indirect(
+        &mut self,
+        pipeline: &'r ComputePipeline,
+        set: &'r DescriptorSet<'r>,
+        push: &[u8],
+        args: &'r Buffer,
+        offset: u64,
+    ) -> Result<(), GpuError> {
+        if offset % 4 != 0 || offset + 12 > args.size {
+            return Err(GpuError::Shader {
+                name: pipeline.label.clone(),
+                message: format!("indirect arguments at byte {offset} of a {}-byte buffer", args.size),
+            });
+        }
+        self.bind(pipeline, set, push)?;
+        // SAFETY: recording state with a compute pipeline and its set bound above; `args` is
+        // borrowed for 'r, holds the three words at `offset` (checked above) and was created
+        // with INDIRECT_BUFFER usage (`Buffer::new_storage`).
+        unsafe { self.d().cmd_dispatch_indirect(self.cmd, args.raw, offset) };
+        Ok(())
+    }
+
+    /// Makes compute writes visible to the next dispatch, its indirect arguments included.
+    pub fn compute_to_indirect(&mut self) {
+        self.memory_barrier(
+            vk::PipelineStageFlags::COMPUTE_SHADER,
+            vk::AccessFlags::SHADER_WRITE,
+            vk::PipelineStageFlags::COMPUTE_SHADER | vk::PipelineStageFlags::DRAW_INDIRECT,
+            vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::INDIRECT_COMMAND_READ,
+        );
     }
 
     /// Fills a buffer with a repeated 32-bit word and makes the fill visible to compute shaders.

@@ -101,7 +101,8 @@ impl Buffer {
         Self::new(ctx, label, size, usage, MemoryLocation::CpuToGpu)
     }
 
-    /// A buffer only the GPU reads and writes (shader storage, fills and copies). Larger than
+    /// A buffer only the GPU reads and writes (shader storage, fills, copies and indirect
+    /// dispatch arguments). Larger than
     /// the device's storage buffer range is out of memory: the renderer then retries smaller.
     pub fn new_storage(ctx: &Arc<Context>, label: &str, size: u64) -> Result<Self, GpuError> {
         let range = ctx.limits().max_storage_buffer_range as u64;
@@ -117,7 +118,8 @@ impl Buffer {
             size,
             vk::BufferUsageFlags::STORAGE_BUFFER
                 | vk::BufferUsageFlags::TRANSFER_DST
-                | vk::BufferUsageFlags::TRANSFER_SRC,
+                | vk::BufferUsageFlags::TRANSFER_SRC
+                | vk::BufferUsageFlags::INDIRECT_BUFFER,
             MemoryLocation::GpuOnly,
         )
     }

@@ -2,6 +2,7 @@
 //! the environment pass and read-back. [`Features`] says what a scene needs; the renderer
 //! allocates and runs only that.
 
+pub mod bricks;
 mod features;
 pub mod gradient;
 mod params;
@@ -239,6 +240,7 @@ impl Renderer {
             self.pipeline(Pass::Init, precision, features, req.debug_view, off)?,
             self.pipeline(Pass::Light, precision, features, req.debug_view, off)?,
             self.pipeline(Pass::View, precision, features, req.debug_view, off)?,
+            self.pipeline(Pass::Tiles, precision, features, req.debug_view, off)?,
             self.pipeline(Pass::Finish, precision, features, req.debug_view, off)?,
         ];
         state::run(

@@ -31,6 +31,8 @@ pub struct Params {
     pub rect: [u32; 4],
     /// View tiles in x, view workgroups, workgroups per dispatch row, light channels.
     pub tiles: [u32; 4],
+    /// Bricks along x, y, z; 1 when view tiles are listed per plane (else all are dispatched).
+    pub culling: [u32; 4],
 }
 
 /// Mirrors `struct Immediates` (push constants).
@@ -50,7 +52,7 @@ mod tests {
     #[test]
     fn params_layout_matches_wgsl() {
         let src = format!(
-            "{}\n@compute @workgroup_size(1) fn main() {{ _ = P.tiles; _ = I.seed; }}",
+            "{}\n@compute @workgroup_size(1) fn main() {{ _ = P.culling; _ = I.seed; }}",
             crate::render::shaders::COMMON
         );
         let module = naga::front::wgsl::parse_str(&src).expect("common.wgsl parses");
@@ -70,7 +72,7 @@ mod tests {
             panic!()
         };
         let expected = [
-            0, 64, 128, 192, 208, 224, 240, 256, 272, 288, 304, 320, 336, 352, 368, 384, 400, 416,
+            0, 64, 128, 192, 208, 224, 240, 256, 272, 288, 304, 320, 336, 352, 368, 384, 400, 416, 432,
         ];
         let offsets: Vec<u32> = members.iter().map(|m| m.offset).collect();
         assert_eq!(offsets, expected);

@@ -17,16 +17,18 @@ pub enum Pass {
     Init,
     Light,
     View,
+    /// Per view tile: clears the next plane's deposits and lists the tiles it needs.
+    Tiles,
     Finish,
 }
 
 impl Pass {
-    pub const ALL: [Pass; 4] = [Pass::Init, Pass::Light, Pass::View, Pass::Finish];
+    pub const ALL: [Pass; 5] = [Pass::Init, Pass::Light, Pass::View, Pass::Tiles, Pass::Finish];
 
     pub fn file(self) -> &'static str {
         match self {
             Pass::Init => "init.wgsl",
-            Pass::Light | Pass::View => "sweep.wgsl",
+            Pass::Light | Pass::View | Pass::Tiles => "sweep.wgsl",
             Pass::Finish => "finish.wgsl",
         }
     }
@@ -36,6 +38,7 @@ impl Pass {
         match self {
             Pass::Light => "light_main",
             Pass::View => "view_main",
+            Pass::Tiles => "tiles_main",
             Pass::Init | Pass::Finish => "main",
         }
     }
@@ -43,7 +46,7 @@ impl Pass {
     fn body(self) -> &'static str {
         match self {
             Pass::Init => include_str!("../../shaders/init.wgsl"),
-            Pass::Light | Pass::View => include_str!("../../shaders/sweep.wgsl"),
+            Pass::Light | Pass::View | Pass::Tiles => include_str!("../../shaders/sweep.wgsl"),
             Pass::Finish => include_str!("../../shaders/finish.wgsl"),
         }
     }
@@ -74,6 +77,30 @@ impl Pass {
         ShaderSource::parse(self.file(), &self.source())
     }
 
-    /// Invocations per workgroup side of the 64-invocation tiles the passes work in.
+    /// Invocations per side of the square tiles the passes' workgroups work on (`TILE` in
+    /// common.wgsl).
     pub const TILE: u32 = 8;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_tile_size_matches_the_shaders() {
+        let line = format!("const TILE: u32 = {}u;", Pass::TILE);
+        assert!(COMMON.contains(&line), "common.wgsl lacks '{line}'");
+        for pass in [Pass::Init, Pass::Light, Pass::View, Pass::Tiles] {
+            let compiled = pass
+                .parse()
+                .unwrap()
+                .specialise(
+                    pass.entry(),
+                    &crate::render::Features::default()
+                        .constants(crate::render::DebugView::Image, crate::scene::Precision::F16),
+                )
+                .unwrap();
+            assert_eq!(compiled.workgroup_size, [Pass::TILE * Pass::TILE, 1, 1], "{pass:?}");
+        }
+    }
 }

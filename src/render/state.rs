@@ -62,17 +62,22 @@ struct Layout {
     view_tiles_x: u32,
     view_groups: u32,
     channels: u32,
+    /// The view tiles each plane needs are listed on the device and dispatched indirectly
+    /// (one row of workgroups: at most MAX_GROUPS_PER_ROW tiles).
+    lists: bool,
 }
 
 impl Layout {
     fn new(view: &ViewSetup, grid: BeamGrid, channels: u32) -> Layout {
         let view_tiles_x = tiles(view.rect.width());
+        let view_groups = view_tiles_x * tiles(view.rect.height());
         Layout {
             grid,
             beam_groups: tiles(grid.width) * tiles(grid.height),
             view_tiles_x,
-            view_groups: view_tiles_x * tiles(view.rect.height()),
+            view_groups,
             channels,
+            lists: view_groups <= MAX_GROUPS_PER_ROW,
         }
     }
 }
@@ -138,7 +143,13 @@ fn light_windows(view: &ViewSetup, grid: &BeamGrid, light: glam::Vec3, refractio
         .collect()
 }
 
-fn make_params(prepared: &PreparedScene, view: &ViewSetup, layout: &Layout, env_levels: u32) -> Params {
+fn make_params(
+    prepared: &PreparedScene,
+    view: &ViewSetup,
+    layout: &Layout,
+    env_levels: u32,
+    brick_dims: [u32; 3],
+) -> Params {
     let scene = &prepared.scene;
     let vol = &prepared.volume;
     let ld = light_direction(&scene.light);
@@ -212,6 +223,7 @@ fn make_params(prepared: &PreparedScene, view: &ViewSetup, layout: &Layout, env_
             MAX_GROUPS_PER_ROW,
             layout.channels,
         ],
+        culling: [brick_dims[0], brick_dims[1], brick_dims[2], u32::from(layout.lists)],
     }
 }
 
@@ -251,7 +263,7 @@ impl State {
         let beams = features.transport == LightTransport::Beams;
         let refraction = features.refraction;
         let back_dir = !beams && (refraction || features.intensity_correction);
-        let sizes: [(&str, u64, bool); 12] = [
+        let sizes: [(&str, u64, bool); 15] = [
             ("view_light", pixels * rgba, true),
             ("view_ray", pixels * 16, refraction),
             ("view_aux", pixels * 16, true),
@@ -268,6 +280,9 @@ impl State {
             ("back_light", LIGHT_RING * cells * rgba, !beams),
             ("back_dir", LIGHT_RING * cells * 16, back_dir),
             ("image_out", pixels * 16, true),
+            ("view_tiles", layout.view_groups as u64 * 4, true),
+            ("tile_lists", LIGHT_RING * layout.view_groups as u64 * 4, layout.lists),
+            ("tile_args", LIGHT_RING * 12, true),
         ];
         let mut buffers = Vec::new();
         let mut bytes = 0;
@@ -296,7 +311,7 @@ pub(super) fn run(
     req: &RenderRequest,
     features: Features,
     precision: Precision,
-    pipelines: &[Arc<ComputePipeline>; 4],
+    pipelines: &[Arc<ComputePipeline>; 5],
     cache: &mut Option<CachedTextures>,
 ) -> Result<RenderOutput, RenderError> {
     let (w, h) = (req.width, req.height);
@@ -315,7 +330,8 @@ pub(super) fn run(
         1 + (req.debug_depth.clamp(0.0, 1.0) * (view.planes - 1) as f32).round() as u32
     };
     let light = light_direction(&scene.light);
-    let grid = view.beam_grid(light, scene.quality.beams_per_texel);
+    let deposits = features.transport == LightTransport::Beams && features.refraction;
+    let grid = view.beam_grid(light, scene.quality.beams_per_texel, !deposits);
     let layout = Layout::new(&view, grid, light_channels(&features, req.debug_view));
     let windows = light_windows(&view, &grid, light, features.refraction);
 
@@ -357,6 +373,7 @@ pub(super) fn run(
         &view,
         &layout,
         cached.textures.env_levels,
+        cached.textures.brick_dims,
     )))?;
     let state = State::new(ctx, &view, &layout, &features, precision)?;
     let mut window_buffer = Buffer::new_upload(
@@ -385,6 +402,7 @@ pub(super) fn run(
             ("env_tex", Resource::Image(&t.env)),
             ("env_sampler", Resource::Sampler(&t.env_sampler)),
             ("light_window", Resource::Buffer(&window_buffer)),
+            ("bricks", Resource::Buffer(&t.bricks)),
         ];
         for (name, buffer) in &state.buffers {
             writes.push((*name, Resource::Buffer(buffer)));
@@ -399,6 +417,9 @@ pub(super) fn run(
         cached.textures.record_upload(&mut rec, upload);
     }
     rec.fill(state.get("light_acc")?, 0);
+    rec.fill(state.get("view_tiles")?, 0);
+    rec.fill(state.get("tile_args")?, 0);
+    let tile_args = state.get("tile_args")?;
     let finish_groups = [tiles(w), tiles(h), 1];
     let texels_per_plane = (layout.grid.count() + view.rect.width() as u64 * view.rect.height() as u64).max(1);
     let diagnoses_light = matches!(
@@ -457,22 +478,24 @@ pub(super) fn run(
             if plane < view.planes && window > 0 {
                 r.dispatch(&pipelines[1], &sets[1], p, groups(window))?;
             }
-            if diagnoses_light {
-                // Light diagnostics need no view rays, only the ring cleared for the light.
-                if features.transport == LightTransport::Beams && features.refraction {
+            if !diagnoses_light {
+                if plane >= 2 && layout.lists {
+                    let offset = (plane as u64 % LIGHT_RING) * 12;
+                    r.dispatch_indirect(&pipelines[2], &sets[2], p, tile_args, offset)?;
+                } else {
                     r.dispatch(&pipelines[2], &sets[2], p, groups(layout.view_groups))?;
                 }
-            } else {
-                r.dispatch(&pipelines[2], &sets[2], p, groups(layout.view_groups))?;
             }
-            r.compute_to_compute();
+            // Clears the ring for the next plane's deposits and lists its view tiles.
+            r.dispatch(&pipelines[3], &sets[3], p, groups(layout.view_groups))?;
+            r.compute_to_indirect();
             plane += 1;
         }
         let last = plane > dispatches;
         if last {
             r.dispatch(
-                &pipelines[3],
-                &sets[3],
+                &pipelines[4],
+                &sets[4],
                 bytemuck::bytes_of(&push(planes_run - 1)),
                 finish_groups,
             )?;

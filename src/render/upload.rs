@@ -27,6 +27,9 @@ pub struct SceneTextures {
     pub linear_clamp: Sampler,
     pub volume_sampler: Sampler,
     pub env_sampler: Sampler,
+    /// Which 8³ bricks absorb or show (`bricks.rs`), one u32 each.
+    pub bricks: Buffer,
+    pub brick_dims: [u32; 3],
 }
 
 /// The contents of freshly created [`SceneTextures`], staged for [`SceneTextures::record_upload`].
@@ -92,6 +95,7 @@ impl SceneTextures {
 
         let vol_img = volume_image(ctx, "volume", volume)?;
         let samples = volume.normalized_u16(window);
+        let occupancy = super::bricks::bricks(&samples, volume.dims, tf);
         let bytes: Vec<u8> = bytemuck::cast_slice(&samples).to_vec();
         uploads.push((images.len(), vec![(staging.push(&bytes), vol_img.desc.extent)]));
         images.push(vol_img);
@@ -200,6 +204,13 @@ impl SceneTextures {
         let particle_table = it.next().ok_or_else(missing)?;
         let medium_table = it.next().ok_or_else(missing)?;
         let env = it.next().ok_or_else(missing)?;
+        let mut bricks = Buffer::new_upload(
+            ctx,
+            "bricks",
+            (occupancy.flags.len() * 4) as u64,
+            ash::vk::BufferUsageFlags::STORAGE_BUFFER,
+        )?;
+        bricks.write(bytemuck::cast_slice(&occupancy.flags))?;
         let textures = SceneTextures {
             volume,
             gradient,
@@ -210,6 +221,8 @@ impl SceneTextures {
             linear_clamp,
             volume_sampler,
             env_sampler,
+            bricks,
+            brick_dims: occupancy.dims,
         };
         let pending = PendingUpload {
             staging: Arc::new(buffer),

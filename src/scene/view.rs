@@ -224,7 +224,14 @@ impl ViewSetup {
     /// unit, z > 0), `beams_per_texel` per pixel and axis on plane 0. They cover the box's
     /// shadow (what the volume can change) intersected with the light that reaches the pixels
     /// of [`ViewSetup::rect`] on any plane; everything else is unobstructed light.
-    pub fn beam_grid(&self, light: Vec3, beams_per_texel: f32) -> BeamGrid {
+    ///
+    /// With `per_centre_pixel` the cells are sized per pixel at the volume's centre instead
+    /// of per pixel on plane 0: in perspective a plane-0 pixel covers less of the scene than
+    /// one at the centre (by z0 / z_centre), and light that keeps its cells (no refraction)
+    /// need not be traced finer than the image resolves it there. Beams that deposit their
+    /// power keep one cell per plane-0 pixel, so that an unrefracted beam is never wider than
+    /// a pixel (it lands on the finest level of the deposit pyramid).
+    pub fn beam_grid(&self, light: Vec3, beams_per_texel: f32, per_centre_pixel: bool) -> BeamGrid {
         let z0 = self.z_first;
         let z_last = self.plane_z(self.planes - 1);
         let to_plane0 = |p: Vec3| self.pixel_of(p - light * ((p.z - z0) / light.z));
@@ -252,10 +259,16 @@ impl ViewSetup {
         let (n_lo, n_hi) = bounds(&mut needed.into_iter());
         let lo = s_lo.max(n_lo);
         let hi = s_hi.min(n_hi).max(lo);
-        let mut stride = 1.0 / beams_per_texel;
+        let z_centre = self.view_from_world.transform_point3(Vec3::ZERO).z;
+        let pixels_per_centre_pixel = if per_centre_pixel && self.perspective && z_centre > z0 {
+            z_centre / z0
+        } else {
+            1.0
+        };
+        let mut stride = pixels_per_centre_pixel / beams_per_texel;
         let pixels = (self.width as f32 * self.height as f32).max(1.0);
         let budget = MAX_BEAMS_PER_PIXEL * pixels * beams_per_texel * beams_per_texel;
-        let area = ((hi - lo).x + 2.0) * ((hi - lo).y + 2.0);
+        let area = ((hi - lo).x + 2.0 * stride) * ((hi - lo).y + 2.0 * stride);
         if area / (stride * stride) > budget {
             stride = (area / budget).sqrt();
         }

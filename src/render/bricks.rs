@@ -1,0 +1,116 @@
+//! Empty-space skipping: which 8³ bricks of the volume can change light or colour at all. A
+//! brick is empty when, over the range of data values in it (one voxel wider on each side,
+//! what trilinear sampling reaches), the opacity is zero and the medium colour is white: a
+//! segment there composites nothing and lets all light through. The GPU skips tiles of view
+//! rays and light cells whose segment lies in empty bricks.
+
+use rayon::prelude::*;
+
+use crate::transfer::TransferFunctions;
+
+/// Voxels per brick edge.
+pub const BRICK: usize = 8;
+
+/// Per brick (x fastest): 1 if something in it absorbs or shows, else 0; and the brick
+/// counts along each axis.
+pub struct Bricks {
+    pub flags: Vec<u32>,
+    pub dims: [u32; 3],
+}
+
+/// The largest value of a piecewise-linear function (`points` as in `transfer::Curve` with
+/// the value in column `k`) over [a, b], and its smallest, as (min, max).
+fn range_of<const N: usize>(points: &[[f32; N]], k: usize, a: f32, b: f32, eval: impl Fn(f32) -> f32) -> (f32, f32) {
+    let mut lo = eval(a).min(eval(b));
+    let mut hi = eval(a).max(eval(b));
+    for p in points {
+        if p[0] > a && p[0] < b {
+            lo = lo.min(p[k]);
+            hi = hi.max(p[k]);
+        }
+    }
+    (lo, hi)
+}
+
+/// Whether values in [a, b] (transfer-function domain) absorb or show anything.
+fn visible(tf: &TransferFunctions, a: f32, b: f32) -> bool {
+    let (_, alpha) = range_of(&tf.opacity.points, 1, a, b, |x| tf.opacity.eval(x));
+    if alpha > 0.0 {
+        return true;
+    }
+    (1..=3).any(|k| range_of(&tf.medium.points, k, a, b, |x| tf.medium.eval(x)[k - 1]).0 < 1.0)
+}
+
+/// The bricks of a volume of `dims` voxels with 16-bit samples (0..65535 ↦ [0, 1]).
+pub fn bricks(samples: &[u16], dims: [usize; 3], tf: &TransferFunctions) -> Bricks {
+    let nb = dims.map(|d| d.div_ceil(BRICK).max(1));
+    let [nx, ny, nz] = dims;
+    let flags: Vec<u32> = (0..nb[0] * nb[1] * nb[2])
+        .into_par_iter()
+        .map(|b| {
+            let (bx, by, bz) = (b % nb[0], (b / nb[0]) % nb[1], b / (nb[0] * nb[1]));
+            let range = |i: usize, n: usize| (i * BRICK).saturating_sub(1)..((i + 1) * BRICK + 1).min(n);
+            let (mut lo, mut hi) = (u16::MAX, 0u16);
+            for z in range(bz, nz) {
+                for y in range(by, ny) {
+                    let row = (z * ny + y) * nx;
+                    for x in range(bx, nx) {
+                        let v = samples[row + x];
+                        lo = lo.min(v);
+                        hi = hi.max(v);
+                    }
+                }
+            }
+            // Bricks at the volume's faces also reach the zero outside it.
+            let face = |i: usize, n: usize| i == 0 || (i + 1) * BRICK >= n;
+            if face(bx, nx) || face(by, ny) || face(bz, nz) {
+                lo = 0;
+            }
+            u32::from(lo <= hi && visible(tf, lo as f32 / 65535.0, hi as f32 / 65535.0))
+        })
+        .collect();
+    Bricks {
+        flags,
+        dims: nb.map(|n| n as u32),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::transfer::{ColorRamp, Curve};
+
+    fn tf(opacity: Vec<[f32; 2]>, medium: Vec<[f32; 4]>) -> TransferFunctions {
+        TransferFunctions {
+            name: None,
+            opacity: Curve { points: opacity },
+            color: ColorRamp::constant([1.0; 3]),
+            eta: Curve::constant(1.0),
+            medium: ColorRamp { points: medium },
+        }
+    }
+
+    #[test]
+    fn a_brick_is_empty_only_where_nothing_absorbs() {
+        // 24³ voxels: 0 everywhere but one voxel of 0.8 in brick (1, 1, 1).
+        let dims = [24, 24, 24];
+        let mut samples = vec![0u16; 24 * 24 * 24];
+        samples[(12 * 24 + 12) * 24 + 12] = (0.8 * 65535.0) as u16;
+        // Opacity only above 0.5: just the brick holding the voxel (and any brick whose
+        // one-voxel border reaches it: none, it is in the middle of its brick).
+        let t = tf(vec![[0.0, 0.0], [0.5, 0.0], [0.6, 1.0]], vec![[0.0, 1.0, 1.0, 1.0]]);
+        let b = bricks(&samples, dims, &t);
+        assert_eq!(b.dims, [3, 3, 3]);
+        assert_eq!(b.flags.iter().sum::<u32>(), 1);
+        assert_eq!(b.flags[(3 + 1) * 3 + 1], 1);
+        // A peak of opacity between two control points inside the range still counts.
+        let peaked = tf(
+            vec![[0.0, 0.0], [0.3, 0.0], [0.4, 0.5], [0.45, 0.0]],
+            vec![[0.0, 1.0, 1.0, 1.0]],
+        );
+        assert_eq!(bricks(&samples, dims, &peaked).flags[(3 + 1) * 3 + 1], 1);
+        // A tinted medium at the background value makes every brick count.
+        let tinted = tf(vec![[0.0, 0.0]], vec![[0.0, 0.9, 1.0, 1.0], [1.0, 1.0, 1.0, 1.0]]);
+        assert!(bricks(&samples, dims, &tinted).flags.iter().all(|f| *f == 1));
+    }
+}
