@@ -207,8 +207,12 @@ impl Medium for VolumeMedium {
         }
     }
 
+    /// The grid's box and the half voxel around it where trilinear interpolation still blends
+    /// the edge voxels with the zero border (as the GPU's clamp-to-border sampler does): a ray
+    /// started on the box face itself would miss that part of the index step.
     fn bounds(&self) -> (DVec3, DVec3) {
-        (-self.half_extent, self.half_extent)
+        let border = self.half_extent + 0.5 * self.spacing;
+        (-border, border)
     }
 
     fn voxel_length(&self) -> f64 {

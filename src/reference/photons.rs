@@ -346,7 +346,7 @@ fn trace_one<M: Medium + ?Sized>(
             budget -= len;
             continue;
         }
-        let next = rk4::step(medium, ray, h);
+        let next = rk4::step_on_shell(medium, ray, h);
         let tau = total_tau(medium, ray.x, next.x, 4);
         power = deposit(grid, ray.x, next.x, h, power, tau);
         ray = next;

@@ -232,7 +232,7 @@ fn view_ray<M: Medium + ?Sized>(
                 },
                 h,
             ),
-            None => (rk4::step(medium, ray, h), h),
+            None => (rk4::step_on_shell(medium, ray, h), h),
         };
         // Four sub-segments per step for extinction and light, each split further (down to
         // 1/64 of a step) wherever it is more than 5% opaque, so that dense surfaces are
