@@ -9,10 +9,12 @@
 //!   from ray density), and view rays composite with the Oddy–Willis model.
 //! - [`plane_light`]: the exact irradiance of the light on planes of constant view depth (what
 //!   the GPU's light buffer holds at a plane), by the same forward rays.
+//! - [`measure`]: the comparisons tests and the bench make between images of light.
 
 // Per-channel loops index several [f64; 3] arrays at once; iterators would hide that.
 #![allow(clippy::needless_range_loop)]
 
+pub mod measure;
 pub mod medium;
 pub mod photons;
 pub mod plane_light;

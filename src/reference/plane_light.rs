@@ -22,6 +22,7 @@
 use glam::{DMat4, DVec2, DVec3};
 use rayon::prelude::*;
 
+use super::measure::ScalarImage;
 use super::medium::{Medium, VolumeMedium};
 use super::photons::{basis, DistantLight};
 use super::rk4::{self, Ray};
@@ -145,6 +146,17 @@ pub struct PlaneIrradiance {
     pub power_crossing: [f64; 3],
     /// Power of the crossings against +z (already subtracted from the two above).
     pub power_backward: [f64; 3],
+}
+
+impl PlaneIrradiance {
+    /// Channel `c` as a scalar image (for [`super::measure`]).
+    pub fn channel(&self, c: usize) -> ScalarImage {
+        ScalarImage {
+            width: self.width as usize,
+            height: self.height as usize,
+            data: self.texels.iter().map(|t| t[c]).collect(),
+        }
+    }
 }
 
 /// The light on every requested plane, with the trace's power bookkeeping (same units as
