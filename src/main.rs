@@ -121,6 +121,9 @@ struct BenchArgs {
     /// Vulkan device: index or name substring (see `caustica devices`).
     #[arg(long, default_value = "auto")]
     device: String,
+    /// Switch the scenes' highlights off in both renderers (to compare everything else).
+    #[arg(long)]
+    no_highlights: bool,
     /// Instead of the sweep, measure the reference renderer's convergence (error against a
     /// finer run of itself versus rays per voxel² and step length) on the first scene; no GPU.
     #[arg(long)]
@@ -230,6 +233,7 @@ fn bench(args: &BenchArgs) -> Result<()> {
     if let Some(r) = args.resolution {
         plan.resolution = r;
     }
+    plan.highlights = !args.no_highlights;
     if args.convergence {
         let path = args.out.join("convergence.md");
         std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;

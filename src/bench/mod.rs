@@ -99,6 +99,8 @@ pub struct Plan {
     pub settings: Vec<Setting>,
     /// GPU frames per setting (median, min, max of their GPU times).
     pub frames: u32,
+    /// Render the scenes' highlights (both renderers model them; off compares the rest alone).
+    pub highlights: bool,
 }
 
 impl Plan {
@@ -118,6 +120,7 @@ impl Plan {
             },
             settings: Setting::one_at_a_time(256, &[0.25, 0.5, 2.0, 4.0], &[128, 512, 1024]),
             frames: 5,
+            highlights: true,
         }
     }
 
@@ -137,6 +140,7 @@ impl Plan {
             },
             settings: Setting::one_at_a_time(128, &[0.5, 2.0, 4.0], &[64, 256]),
             frames: 3,
+            highlights: true,
         }
     }
 }
@@ -162,14 +166,13 @@ pub struct Report {
     pub plot: PathBuf,
 }
 
-/// A built-in scene prepared for the bench: at `resolution`, highlights off (the reference
-/// does not model them; see `reference::render`).
-pub fn bench_scene(name: &str, resolution: usize) -> Result<PreparedScene, BenchError> {
+/// A built-in scene prepared for the bench: at `resolution`, with its highlights or without.
+pub fn bench_scene(name: &str, resolution: usize, highlights: bool) -> Result<PreparedScene, BenchError> {
     let mut scene = builtin(name)?.scene;
     if let VolumeSource::Builtin { resolution: r, .. } = &mut scene.volume {
         *r = resolution;
     }
-    scene.quality.specular = false;
+    scene.quality.specular &= highlights;
     Ok(PreparedScene::load(&scene)?)
 }
 
@@ -229,7 +232,7 @@ pub fn run(ctx: Arc<Context>, plan: &Plan, out: &Path, progress: bool) -> Result
     });
     let mut rows = Vec::new();
     for name in &plan.scenes {
-        let mut prepared = bench_scene(name, plan.resolution)?;
+        let mut prepared = bench_scene(name, plan.resolution, plan.highlights)?;
         if let Some(b) = &bar {
             b.set_message(format!("{name}: reference"));
         }

@@ -21,6 +21,9 @@ pub mod plane_light;
 #[cfg(test)]
 mod plane_tests;
 pub mod rk4;
+#[cfg(test)]
+mod scene_tests;
+pub mod shading;
 pub mod straight;
 #[cfg(test)]
 mod tests;

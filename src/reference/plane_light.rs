@@ -654,7 +654,7 @@ pub fn trace_scene(
         width,
         height,
     );
-    let medium = VolumeMedium::new(vol, prepared.window(), &prepared.tf);
+    let medium = VolumeMedium::for_scene(prepared);
     let d = light_direction(&scene.light);
     let light = DistantLight {
         direction: view
