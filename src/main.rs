@@ -124,6 +124,14 @@ struct BenchArgs {
     /// Switch the scenes' highlights off in both renderers (to compare everything else).
     #[arg(long)]
     no_highlights: bool,
+    /// Instead of the sweep, the light-transport table: the light buffer against the exact
+    /// light on planes 1.1–3 R behind a glass ball (R = 16 voxels), per transport and sample
+    /// distance 1, 0.5, 0.25; writes light.md and light.csv.
+    #[arg(long)]
+    light: bool,
+    /// With --light: the image edge in texels (the frame spans 4 R; default 128, or 64 with --quick).
+    #[arg(long)]
+    size: Option<u32>,
     /// Instead of the sweep, measure the reference renderer's convergence (error against a
     /// finer run of itself versus rays per voxel² and step length) on the first scene; no GPU.
     #[arg(long)]
@@ -264,6 +272,9 @@ fn bench(args: &BenchArgs) -> Result<()> {
         return Ok(());
     }
     let ctx = Context::new(&ContextDesc::from_env(DeviceSelector::parse(&args.device)))?;
+    if args.light {
+        return light_bench(args, ctx);
+    }
     // Render errors keep their type so that they map to the GPU exit codes.
     let report = bench::run(ctx.clone(), &plan, &args.out, true).map_err(|e| match e {
         BenchError::Render(r) => anyhow::Error::from(r),
@@ -276,6 +287,38 @@ fn bench(args: &BenchArgs) -> Result<()> {
         report.csv.display(),
         report.plot.display()
     );
+    if ctx.validation_errors() > 0 {
+        bail!("{} Vulkan validation errors were reported", ctx.validation_errors());
+    }
+    Ok(())
+}
+
+fn light_bench(args: &BenchArgs, ctx: std::sync::Arc<Context>) -> Result<()> {
+    use caustica::bench::light::{self, transport_variants, LightPlan};
+    use caustica::bench::BenchError;
+    let mut plan = if args.quick {
+        LightPlan::quick(transport_variants())
+    } else {
+        LightPlan::full(transport_variants())
+    };
+    if let Some(f) = args.frames {
+        if f == 0 {
+            bail!("--frames must be at least 1");
+        }
+        plan.frames = f;
+    }
+    if let Some(size) = args.size {
+        if size == 0 {
+            bail!("--size must be at least 1");
+        }
+        plan.size = size;
+    }
+    let report = light::run(ctx.clone(), &plan, &args.out).map_err(|e| match e {
+        BenchError::Render(r) => anyhow::Error::from(r),
+        other => anyhow::Error::from(other),
+    })?;
+    print!("{}", std::fs::read_to_string(&report.markdown)?);
+    eprintln!("wrote {} and {}", report.markdown.display(), report.csv.display());
     if ctx.validation_errors() > 0 {
         bail!("{} Vulkan validation errors were reported", ctx.validation_errors());
     }

@@ -1,9 +1,11 @@
 //! `caustica bench`: sweeps the speed knobs of the GPU renderer over built-in scenes and
 //! measures, for each setting, the GPU frame time and the error against the reference renderer
 //! (`reference`). Writes a Markdown table, a CSV file and a PNG plot of error against time
-//! with each scene's Pareto front.
+//! with each scene's Pareto front. [`light`] measures the light buffer against the exact
+//! light on the same planes behind a ball lens.
 
 pub mod convergence;
+pub mod light;
 pub mod metrics;
 pub mod plot;
 mod report;
@@ -29,6 +31,8 @@ pub enum BenchError {
     Reference(#[from] ReferenceError),
     #[error(transparent)]
     Scene(#[from] SceneError),
+    #[error(transparent)]
+    Volume(#[from] crate::volume::VolumeError),
     #[error("cannot write {path}: {message}")]
     Write { path: PathBuf, message: String },
     #[error("invalid bench plan: {0}")]

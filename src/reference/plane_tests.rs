@@ -798,3 +798,28 @@ fn the_comparison_passes_a_converged_trace_and_fails_a_shifted_or_wrong_one() {
     assert!(!passes(shifted), "a result shifted by one texel passed: {shifted:?}");
     assert!(!passes(wrong), "a lens of the wrong index passed: {wrong:?}");
 }
+
+#[test]
+fn the_nearest_sweep_plane_is_the_one_the_gpu_shows_at_that_depth() {
+    // `render --debug-view light --at-depth D` shows plane 1 + round(D·(planes − 1)) − 1
+    // (render/state.rs); the depth returned must select exactly the plane returned, which lies
+    // within half a plane spacing of the wanted depth.
+    let scene = builtin("ball-lens").unwrap().scene;
+    for ds in [1.0f32, 0.5, 0.25, 0.37] {
+        let mut s = scene.clone();
+        s.quality.sample_distance = ds;
+        let view = ViewSetup::new(&s, [48, 40, 56], [1.0; 3], 32, 32).unwrap();
+        let span = view.step as f64 * (view.planes - 1) as f64;
+        for t in [0.0, 0.013, 0.31, 0.5, 0.77, 0.999, 1.0] {
+            let want = view.z_first as f64 + t * span;
+            let (k, depth, z) = plane_light::nearest_sweep_plane(&view, want);
+            let shown = (depth.clamp(0.0, 1.0) * (view.planes - 1) as f32).round() as u32;
+            assert_eq!(shown, k, "Δs {ds}, t {t}");
+            assert_eq!(z, (view.z_first + k as f32 * view.step) as f64);
+            assert!(
+                (z - want).abs() <= 0.5 * view.step as f64 * (1.0 + 1e-5),
+                "Δs {ds}, t {t}"
+            );
+        }
+    }
+}
