@@ -133,7 +133,8 @@ struct BenchArgs {
     #[arg(long)]
     size: Option<u32>,
     /// Instead of the sweep, measure the reference renderer's convergence (error against a
-    /// finer run of itself versus rays per voxel² and step length) on the first scene; no GPU.
+    /// finer run of itself versus rays per voxel² and step length) on the first scene; with
+    /// --light, the exact plane trace's (versus rays per texel and step); no GPU.
     #[arg(long)]
     convergence: bool,
 }
@@ -242,6 +243,9 @@ fn bench(args: &BenchArgs) -> Result<()> {
         plan.resolution = r;
     }
     plan.highlights = !args.no_highlights;
+    if args.light && args.convergence {
+        return light_convergence(args);
+    }
     if args.convergence {
         let path = args.out.join("convergence.md");
         std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
@@ -290,6 +294,29 @@ fn bench(args: &BenchArgs) -> Result<()> {
     if ctx.validation_errors() > 0 {
         bail!("{} Vulkan validation errors were reported", ctx.validation_errors());
     }
+    Ok(())
+}
+
+fn light_convergence(args: &BenchArgs) -> Result<()> {
+    use caustica::bench::light::{self, LightPlan};
+    let mut plan = if args.quick {
+        LightPlan::quick(Vec::new())
+    } else {
+        LightPlan::full(Vec::new())
+    };
+    if let Some(size) = args.size {
+        if size == 0 {
+            bail!("--size must be at least 1");
+        }
+        plan.size = size;
+    }
+    let runs: &[(u32, f64)] = &[(2, 0.25), (4, 0.25), (8, 0.25), (8, 0.5), (8, 0.125)];
+    let truth = if args.quick { (16, 0.125) } else { (16, 0.0625) };
+    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    let path = args.out.join("light-convergence.md");
+    light::convergence(&plan, runs, truth, &path)?;
+    print!("{}", std::fs::read_to_string(&path)?);
+    eprintln!("wrote {}", path.display());
     Ok(())
 }
 

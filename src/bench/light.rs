@@ -198,18 +198,33 @@ pub struct LightReport {
     pub csv: PathBuf,
 }
 
-/// Runs `plan` and writes `light.md` and `light.csv` into `out`.
-pub fn run(ctx: Arc<Context>, plan: &LightPlan, out: &Path) -> Result<LightReport, BenchError> {
-    if plan.variants.is_empty() || plan.sample_distances.is_empty() || plan.depths.is_empty() || plan.frames == 0 {
-        return Err(BenchError::Plan(
-            "the light bench needs a variant, a sample distance, a depth and a frame".into(),
-        ));
-    }
-    if !(plan.radius.is_finite() && (2.0..=512.0).contains(&plan.radius)) || plan.size == 0 {
+fn check(plan: &LightPlan) -> Result<(), BenchError> {
+    if !(plan.radius.is_finite() && (2.0..=512.0).contains(&plan.radius)) || plan.size == 0 || plan.depths.is_empty() {
         return Err(BenchError::Plan(format!(
-            "ball radius {} must be in [2, 512] voxels and the image at least 1 texel",
+            "ball radius {} must be in [2, 512] voxels, the image at least 1 texel, and a depth given",
             plan.radius
         )));
+    }
+    Ok(())
+}
+
+/// View depth of the ball's centre in `scene`'s camera at `size`².
+fn centre_depth(scene: &Scene, volume: &Volume, centre_z: f64, size: u32) -> Result<(ViewSetup, f64), BenchError> {
+    let view = ViewSetup::new(scene, volume.dims, volume.spacing, size, size).map_err(BenchError::Plan)?;
+    let z = view
+        .view_from_world
+        .transform_point3(Vec3::new(0.0, 0.0, centre_z as f32))
+        .z as f64;
+    Ok((view, z))
+}
+
+/// Runs `plan` and writes `light.md` and `light.csv` into `out`.
+pub fn run(ctx: Arc<Context>, plan: &LightPlan, out: &Path) -> Result<LightReport, BenchError> {
+    check(plan)?;
+    if plan.variants.is_empty() || plan.sample_distances.is_empty() || plan.frames == 0 {
+        return Err(BenchError::Plan(
+            "the light bench needs a variant, a sample distance and a frame".into(),
+        ));
     }
     std::fs::create_dir_all(out).map_err(|e| write_err(out)(e.to_string()))?;
     let (volume, tf, centre_z) = ball_lens(plan.radius)?;
@@ -220,9 +235,7 @@ pub fn run(ctx: Arc<Context>, plan: &LightPlan, out: &Path) -> Result<LightRepor
     for &ds in &plan.sample_distances {
         let mut scene = base.clone();
         scene.quality.sample_distance = ds;
-        let view = ViewSetup::new(&scene, volume.dims, volume.spacing, size, size).map_err(BenchError::Plan)?;
-        let world_centre = Vec3::new(0.0, 0.0, centre_z as f32);
-        let centre_view_z = view.view_from_world.transform_point3(world_centre).z as f64;
+        let (view, centre_view_z) = centre_depth(&scene, &volume, centre_z, size)?;
         for &d in &plan.depths {
             let (k, depth, z) = nearest_sweep_plane(&view, centre_view_z + d * plan.radius);
             planes.push((ds, d, k, depth, z, (z - centre_view_z) / plan.radius));
@@ -374,4 +387,86 @@ fn write_csv(path: &Path, rows: &[LightRow]) -> Result<(), String> {
         );
     }
     std::fs::write(path, s).map_err(|e| e.to_string())
+}
+
+/// One run of the exact trace against a finer one.
+#[derive(Clone, Debug)]
+pub struct ConvergenceRow {
+    pub rays_per_texel: u32,
+    pub step_voxels: f64,
+    pub seconds: f64,
+    /// Relative L1 over [−1.5 R, 1.5 R]² at each of the plan's depths.
+    pub rel_l1: Vec<f64>,
+}
+
+/// The exact trace's own convergence on the plan's ball and planes (exactly at the wanted
+/// depths): each (rays per texel edge, RK4 step) of `runs` against a run at `truth`. Writes a
+/// Markdown table to `path`; needs no GPU.
+pub fn convergence(
+    plan: &LightPlan,
+    runs: &[(u32, f64)],
+    truth: (u32, f64),
+    path: &Path,
+) -> Result<Vec<ConvergenceRow>, BenchError> {
+    check(plan)?;
+    let (volume, tf, centre_z) = ball_lens(plan.radius)?;
+    let scene = ball_scene(&volume, &tf, plan.radius);
+    let (_, centre) = centre_depth(&scene, &volume, centre_z, plan.size)?;
+    let zs: Vec<f64> = plan.depths.iter().map(|d| centre + d * plan.radius).collect();
+    let prepared = PreparedScene::from_parts(scene, volume, tf)?;
+    let trace = |(rays, step): (u32, f64)| -> Result<(Vec<ScalarImage>, f64), BenchError> {
+        let settings = PlaneSettings {
+            rays_per_texel: rays,
+            step_voxels: step,
+            ..plan.reference.clone()
+        };
+        let started = Instant::now();
+        let l = plane_light::trace_scene(&prepared, plan.size, plan.size, &zs, &settings)?;
+        let images = l.planes.iter().map(|p| p.channel(1)).collect();
+        Ok((images, started.elapsed().as_secs_f64()))
+    };
+    let (best, best_seconds) = trace(truth)?;
+    let texel = 4.0 * plan.radius / plan.size as f64;
+    let region = Region::square(
+        &best[0],
+        DVec2::splat((plan.size as f64 - 1.0) / 2.0),
+        1.5 * plan.radius / texel,
+    );
+    let mut rows = Vec::new();
+    for &run in runs {
+        let (images, seconds) = trace(run)?;
+        rows.push(ConvergenceRow {
+            rays_per_texel: run.0,
+            step_voxels: run.1,
+            seconds,
+            rel_l1: images
+                .iter()
+                .zip(&best)
+                .map(|(a, b)| measure::relative_l1(a, b, region).unwrap_or(f64::NAN))
+                .collect(),
+        });
+    }
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "Exact plane trace against itself: glass ball n = {BALL_ETA}, R = {} voxels, {}² texels of {texel} voxel; \
+         relative L1 over [−1.5 R, 1.5 R]² against {}² rays per texel and {}-voxel steps ({best_seconds:.0} s).\n",
+        plan.radius, plan.size, truth.0, truth.1
+    );
+    s.push_str("| rays per texel | RK4 step (voxels) | time (s) |");
+    for d in &plan.depths {
+        let _ = write!(s, " {d} R |");
+    }
+    s.push_str("\n|---|---|---|");
+    s.push_str(&"---|".repeat(plan.depths.len()));
+    s.push('\n');
+    for r in &rows {
+        let _ = write!(s, "| {}² | {} | {:.1} |", r.rays_per_texel, r.step_voxels, r.seconds);
+        for e in &r.rel_l1 {
+            let _ = write!(s, " {e:.4} |");
+        }
+        s.push('\n');
+    }
+    std::fs::write(path, s).map_err(|e| write_err(path)(e.to_string()))?;
+    Ok(rows)
 }
