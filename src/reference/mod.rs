@@ -14,6 +14,8 @@
 // Per-channel loops index several [f64; 3] arrays at once; iterators would hide that.
 #![allow(clippy::needless_range_loop)]
 
+#[cfg(test)]
+mod lens_tests;
 pub mod measure;
 pub mod medium;
 pub mod photons;
