@@ -6,6 +6,7 @@
 use glam::DVec3;
 
 use crate::render::PreparedScene;
+use crate::scene::{Scene, Toggle};
 use crate::transfer::{TransferFunctions, MAX_OPTICAL_DEPTH_PER_VOXEL};
 use crate::volume::Volume;
 
@@ -66,6 +67,35 @@ fn depth_per_voxel(transmittance: f64) -> f64 {
         MAX_OPTICAL_DEPTH_PER_VOXEL as f64
     } else {
         (-transmittance.ln()).clamp(0.0, MAX_OPTICAL_DEPTH_PER_VOXEL as f64)
+    }
+}
+
+/// Which of a scene's optical effects are rendered: the reference decides this itself, from
+/// the scene alone, as the GPU renderer's `Features::for_scene` does (a test checks they
+/// agree), so that it shares none of the renderer's code.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SceneOptics {
+    /// η varies (or refraction is forced on): rays bend.
+    pub refraction: bool,
+    /// Cook–Torrance highlights at index interfaces.
+    pub specular: bool,
+    /// η comes from the scene's separate η volume.
+    pub eta_volume: bool,
+}
+
+impl SceneOptics {
+    pub fn of(scene: &Scene, tf: &TransferFunctions) -> SceneOptics {
+        let q = &scene.quality;
+        let refraction = match q.refraction {
+            Toggle::On => true,
+            Toggle::Off => false,
+            Toggle::Auto => !tf.eta_is_constant() || scene.eta_volume.is_some(),
+        };
+        SceneOptics {
+            refraction,
+            specular: refraction && q.specular && scene.shading.specular > 0.0,
+            eta_volume: refraction && scene.eta_volume.is_some(),
+        }
     }
 }
 
@@ -194,11 +224,11 @@ impl VolumeMedium {
         let scene = &prepared.scene;
         let vol = &prepared.volume;
         let mut m = VolumeMedium::new(vol, prepared.window(), &prepared.tf);
-        let features = prepared.features();
-        if let Some(ev) = prepared.eta_volume.as_ref().filter(|_| features.eta_volume) {
+        let optics = SceneOptics::of(scene, &prepared.tf);
+        if let Some(ev) = prepared.eta_volume.as_ref().filter(|_| optics.eta_volume) {
             m.eta_grid = Some(Grid::new(ev, ev.value_range, m.half_extent * 2.0));
         }
-        if !features.refraction {
+        if !optics.refraction {
             m.eta_constant = Some(m.eta_of(0.0));
         }
         if let Some(c) = &scene.clip {

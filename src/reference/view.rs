@@ -8,7 +8,7 @@ use std::io::IsTerminal;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
-use super::medium::{Medium, VolumeMedium};
+use super::medium::{Medium, SceneOptics, VolumeMedium};
 use super::photons::{self, DistantLight, LightGrid, PhotonSettings};
 use super::rk4::{self, Ray};
 use super::shading::{cook_torrance, fresnel_dielectric, interface_sides, FRESNEL_MIN_RELATIVE_STEP};
@@ -122,7 +122,7 @@ pub fn render(
         b.set_message("photons");
     }
     let grid = photons::trace(&medium, &light, &settings.photons, bar.as_ref());
-    let highlights = prepared.features().specular.then_some(Highlights {
+    let highlights = SceneOptics::of(scene, &prepared.tf).specular.then_some(Highlights {
         scale: scene.shading.specular as f64,
         roughness: scene.shading.roughness as f64,
         source: light.direction,
