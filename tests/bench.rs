@@ -45,6 +45,7 @@ fn tiny_bench_writes_table_csv_and_plot() {
         reference: cheap_reference(),
         settings,
         frames: 2,
+        highlights: true,
     };
     let dir = std::env::temp_dir().join(format!("caustica-bench-test-{}", std::process::id()));
     let report = bench::run(gpu.ctx.clone(), &plan, &dir, false).expect("bench runs");
@@ -90,7 +91,9 @@ fn the_error_metric_reports_a_wrong_image_as_wrong() {
     // metric must tell them apart by a wide margin.
     let mut gpu = Gpu::new();
     let size = 32;
-    let p = bench::bench_scene("luneburg", 32).unwrap();
+    // Highlights off: the bounds below were measured without them (the GPU's Fresnel term
+    // still depends on the plane distance; see docs/accuracy.md).
+    let p = bench::bench_scene("luneburg", 32, false).unwrap();
     let reference = Linear::from_image(&reference::render(&p, size, size, &cheap_reference(), false).unwrap());
     let right = Linear::from_image(&gpu.render(&p, &RenderRequest::new(size, size)).image);
     let mut flipped = right.clone();
@@ -113,4 +116,65 @@ fn the_error_metric_reports_a_wrong_image_as_wrong() {
         ..right
     };
     assert!((compare(&black, &reference).unwrap().rel_l1 - 1.0).abs() < 1e-12);
+}
+
+#[test]
+fn tiny_light_bench_measures_the_planes_it_names() {
+    // The light-transport table end to end at a toy size: a ball of R = 6 voxels at 24²,
+    // two planes, one sample distance, two variants (the second one changes nothing). Each
+    // plane measured is the sweep plane nearest the wanted depth, and both variants measure
+    // the same light.
+    use caustica::bench::light::{self, LightPlan, Variant};
+    use caustica::reference::plane_light::PlaneSettings;
+    let gpu = Gpu::new();
+    let plan = LightPlan {
+        radius: 6.0,
+        size: 24,
+        depths: vec![1.5, 3.0],
+        sample_distances: vec![0.5],
+        variants: vec![
+            Variant::new("a", |_| {}),
+            Variant::new("b", |s| s.quality.precision = caustica::scene::Precision::F32),
+        ],
+        frames: 1,
+        reference: PlaneSettings {
+            rays_per_texel: 2,
+            ..PlaneSettings::default()
+        },
+    };
+    let dir = std::env::temp_dir().join(format!("caustica-light-bench-test-{}", std::process::id()));
+    let report = light::run(gpu.ctx.clone(), &plan, &dir).expect("light bench runs");
+    gpu.assert_clean();
+    assert_eq!(report.rows.len(), 4);
+    for r in &report.rows {
+        // The sweep plane nearest the wanted depth: within half a plane spacing (0.5 voxel).
+        assert!((r.plane_r - r.depth_r).abs() * plan.radius <= 0.25 + 1e-6, "{r:?}");
+        assert!(
+            r.rel_l1.is_finite() && r.ms_per_plane > 0.0 && r.exact_max > 0.0,
+            "{r:?}"
+        );
+        // Both renderers see the light leave the ball: the frame holds about the same power.
+        assert!((0.5..2.0).contains(&r.total_power_ratio), "{r:?}");
+    }
+    // f32 buffers change the light by less than 1% of the error the table reports.
+    let (a, b) = (&report.rows[0], &report.rows[2]);
+    assert_eq!(
+        (a.plane_index, a.variant.as_str(), b.variant.as_str()),
+        (b.plane_index, "a", "b")
+    );
+    assert!(
+        (a.rel_l1 - b.rel_l1).abs() < 0.01 * a.rel_l1.max(0.01),
+        "{a:?} vs {b:?}"
+    );
+    let csv = std::fs::read_to_string(&report.csv).unwrap();
+    assert_eq!(csv.lines().count(), 5, "{csv}");
+    assert!(csv.starts_with("transport,sample_distance,depth_r,plane_r"));
+    let md = std::fs::read_to_string(&report.markdown).unwrap();
+    assert_eq!(
+        md.lines()
+            .filter(|l| l.starts_with("| a |") || l.starts_with("| b |"))
+            .count(),
+        4
+    );
+    let _ = std::fs::remove_dir_all(&dir);
 }

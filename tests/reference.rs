@@ -177,3 +177,40 @@ fn clip_plane_zeroes_opacity_on_one_side_only() {
     // Left of the plane nothing changes (one texel of margin for the plane's sub-texel position).
     assert!(left_diff < 1e-3, "unclipped half changed by {left_diff}");
 }
+
+#[test]
+fn the_reference_renders_the_optics_the_gpu_renders() {
+    // The reference decides which effects a scene has without the renderer's code; it must
+    // come to the same answer as `Features::for_scene` for every combination of the switches.
+    use caustica::reference::medium::SceneOptics;
+    use caustica::render::Features;
+    use caustica::scene::{Toggle, VolumeSource};
+    let base = tf();
+    let mut varying = tf();
+    varying.eta = Curve {
+        points: vec![[0.0, 1.0], [1.0, 1.3]],
+    };
+    for t in [&base, &varying] {
+        for refraction in [Toggle::Auto, Toggle::On, Toggle::Off] {
+            for (specular, strength) in [(true, 1.0), (false, 1.0), (true, 0.0)] {
+                for eta_volume in [false, true] {
+                    let mut scene = head_on_scene(t);
+                    scene.quality.refraction = refraction;
+                    scene.quality.specular = specular;
+                    scene.shading.specular = strength;
+                    scene.eta_volume = eta_volume.then(|| VolumeSource::Builtin {
+                        name: "test".into(),
+                        resolution: 0,
+                    });
+                    let f = Features::for_scene(&scene, t);
+                    let o = SceneOptics::of(&scene, t);
+                    assert_eq!(
+                        (o.refraction, o.specular, o.eta_volume),
+                        (f.refraction, f.specular, f.eta_volume),
+                        "{refraction:?}, specular {specular} × {strength}, η volume {eta_volume}"
+                    );
+                }
+            }
+        }
+    }
+}

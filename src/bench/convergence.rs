@@ -41,7 +41,7 @@ pub fn run(
     truth: (f64, f64),
     path: &Path,
 ) -> Result<Vec<ConvergenceRow>, BenchError> {
-    let prepared = bench_scene(scene, resolution)?;
+    let prepared = bench_scene(scene, resolution, true)?;
     let start = Instant::now();
     let best = reference::render(&prepared, size, size, &settings(truth.0, truth.1), false)?;
     let truth_seconds = start.elapsed().as_secs_f64();

@@ -1,9 +1,11 @@
 //! `caustica bench`: sweeps the speed knobs of the GPU renderer over built-in scenes and
 //! measures, for each setting, the GPU frame time and the error against the reference renderer
 //! (`reference`). Writes a Markdown table, a CSV file and a PNG plot of error against time
-//! with each scene's Pareto front.
+//! with each scene's Pareto front. [`light`] measures the light buffer against the exact
+//! light on the same planes behind a ball lens.
 
 pub mod convergence;
+pub mod light;
 pub mod metrics;
 pub mod plot;
 mod report;
@@ -31,6 +33,8 @@ pub enum BenchError {
     Reference(#[from] ReferenceError),
     #[error(transparent)]
     Scene(#[from] SceneError),
+    #[error(transparent)]
+    Volume(#[from] crate::volume::VolumeError),
     #[error("cannot write {path}: {message}")]
     Write { path: PathBuf, message: String },
     #[error("invalid bench plan: {0}")]
@@ -44,6 +48,7 @@ impl crate::Classify for BenchError {
             BenchError::Prepare(e) => e.exit_class(),
             BenchError::Reference(e) => e.exit_class(),
             BenchError::Scene(e) => e.exit_class(),
+            BenchError::Volume(e) => e.exit_class(),
             BenchError::Write { .. } | BenchError::Plan(_) => crate::ExitClass::Input,
         }
     }
@@ -113,6 +118,8 @@ pub struct Plan {
     pub settings: Vec<Setting>,
     /// GPU frames per setting (median, min, max of their GPU times).
     pub frames: u32,
+    /// Render the scenes' highlights (both renderers model them; off compares the rest alone).
+    pub highlights: bool,
 }
 
 impl Plan {
@@ -132,6 +139,7 @@ impl Plan {
             },
             settings: Setting::one_at_a_time(256, &[0.25, 0.5, 2.0, 4.0], &[128, 512, 1024]),
             frames: 5,
+            highlights: true,
         }
     }
 
@@ -151,6 +159,7 @@ impl Plan {
             },
             settings: Setting::one_at_a_time(128, &[0.5, 2.0, 4.0], &[64, 256]),
             frames: 3,
+            highlights: true,
         }
     }
 }
@@ -176,14 +185,13 @@ pub struct Report {
     pub plot: PathBuf,
 }
 
-/// A built-in scene prepared for the bench: at `resolution`, highlights off (the reference
-/// does not model them; see `reference::render`).
-pub fn bench_scene(name: &str, resolution: usize) -> Result<PreparedScene, BenchError> {
+/// A built-in scene prepared for the bench: at `resolution`, with its highlights or without.
+pub fn bench_scene(name: &str, resolution: usize, highlights: bool) -> Result<PreparedScene, BenchError> {
     let mut scene = builtin(name)?.scene;
     if let VolumeSource::Builtin { resolution: r, .. } = &mut scene.volume {
         *r = resolution;
     }
-    scene.quality.specular = false;
+    scene.quality.specular &= highlights;
     Ok(PreparedScene::load(&scene)?)
 }
 
@@ -243,7 +251,7 @@ pub fn run(ctx: Arc<Context>, plan: &Plan, out: &Path, progress: bool) -> Result
     });
     let mut rows = Vec::new();
     for name in &plan.scenes {
-        let mut prepared = bench_scene(name, plan.resolution)?;
+        let mut prepared = bench_scene(name, plan.resolution, plan.highlights)?;
         if let Some(b) = &bar {
             b.set_message(format!("{name}: reference"));
         }

@@ -33,11 +33,12 @@ pub fn write_markdown(path: &Path, rows: &[Row], device: &str, plan: &Plan) -> R
     let r = &plan.reference;
     let _ = writeln!(
         s,
-        "Device: {device}. Volumes: built-in scenes at {} voxels along the longest axis, highlights off. \
+        "Device: {device}. Volumes: built-in scenes at {} voxels along the longest axis, highlights {}. \
          GPU time: median (min–max) of {} frames from timestamp queries. Error: against the reference \
          renderer at {}² ({} rays/voxel², RK4 steps {} voxel light / {} voxel view, {}² rays per pixel), \
          larger viewports box-filtered to that size. ★ = on the scene's Pareto front.\n",
         plan.resolution,
+        on(plan.highlights),
         plan.frames,
         plan.reference_size,
         r.photons.rays_per_voxel2,

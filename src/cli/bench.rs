@@ -41,8 +41,20 @@ pub struct BenchArgs {
     /// Vulkan device: index or name substring (see `caustica devices`).
     #[arg(long, default_value = "auto")]
     device: String,
+    /// Switch the scenes' highlights off in both renderers (to compare everything else).
+    #[arg(long)]
+    no_highlights: bool,
+    /// Instead of the sweep, the light-transport table: the light buffer against the exact
+    /// light on planes 1.1–3 R behind a glass ball (R = 16 voxels), per transport and sample
+    /// distance 1, 0.5, 0.25; writes light.md and light.csv.
+    #[arg(long)]
+    light: bool,
+    /// With --light: the image edge in texels (the frame spans 4 R; default 128, or 64 with --quick).
+    #[arg(long)]
+    size: Option<u32>,
     /// Instead of the sweep, measure the reference renderer's convergence (error against a
-    /// finer run of itself versus rays per voxel² and step length) on the first scene; no GPU.
+    /// finer run of itself versus rays per voxel² and step length) on the first scene; with
+    /// --light, the exact plane trace's (versus rays per texel and step); no GPU.
     #[arg(long)]
     convergence: bool,
 }
@@ -70,6 +82,10 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
     }
     if let Some(r) = args.resolution {
         plan.resolution = r;
+    }
+    plan.highlights = !args.no_highlights;
+    if args.light && args.convergence {
+        return light_convergence(args);
     }
     if args.convergence {
         let path = args.out.join("convergence.md");
@@ -103,6 +119,9 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
         return Ok(());
     }
     let ctx = Context::new(&ContextDesc::from_env(DeviceSelector::parse(&args.device)))?;
+    if args.light {
+        return light_bench(args, ctx);
+    }
     let report = bench::run(ctx.clone(), &plan, &args.out, true)?;
     print!("{}", read_report(&report.markdown).map_err(input)?);
     eprintln!(
@@ -111,6 +130,59 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
         report.csv.display(),
         report.plot.display()
     );
+    if ctx.validation_errors() > 0 {
+        return Err(BenchValidationFailed(ctx.validation_errors()).into());
+    }
+    Ok(())
+}
+
+fn light_convergence(args: &BenchArgs) -> Result<()> {
+    use caustica::bench::light::{self, LightPlan};
+    let mut plan = if args.quick {
+        LightPlan::quick(Vec::new())
+    } else {
+        LightPlan::full(Vec::new())
+    };
+    if let Some(size) = args.size {
+        if size == 0 {
+            return Err(input(anyhow!("--size must be at least 1")));
+        }
+        plan.size = size;
+    }
+    let runs: &[(u32, f64)] = &[(2, 0.25), (4, 0.25), (8, 0.25), (8, 0.5), (8, 0.125)];
+    let truth = if args.quick { (16, 0.125) } else { (16, 0.0625) };
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))
+        .map_err(input)?;
+    let path = args.out.join("light-convergence.md");
+    light::convergence(&plan, runs, truth, &path)?;
+    print!("{}", read_report(&path).map_err(input)?);
+    eprintln!("wrote {}", path.display());
+    Ok(())
+}
+
+fn light_bench(args: &BenchArgs, ctx: std::sync::Arc<Context>) -> Result<()> {
+    use caustica::bench::light::{self, transport_variants, LightPlan};
+    let mut plan = if args.quick {
+        LightPlan::quick(transport_variants())
+    } else {
+        LightPlan::full(transport_variants())
+    };
+    if let Some(f) = args.frames {
+        if f == 0 {
+            return Err(input(anyhow!("--frames must be at least 1")));
+        }
+        plan.frames = f;
+    }
+    if let Some(size) = args.size {
+        if size == 0 {
+            return Err(input(anyhow!("--size must be at least 1")));
+        }
+        plan.size = size;
+    }
+    let report = light::run(ctx.clone(), &plan, &args.out)?;
+    print!("{}", read_report(&report.markdown).map_err(input)?);
+    eprintln!("wrote {} and {}", report.markdown.display(), report.csv.display());
     if ctx.validation_errors() > 0 {
         return Err(BenchValidationFailed(ctx.validation_errors()).into());
     }

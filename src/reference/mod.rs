@@ -7,13 +7,25 @@
 //!   [`medium`] is the continuous optical field, [`rk4`] integrates the ray equation,
 //!   [`photons`] traces light forward from the distant source into a fluence grid (caustics
 //!   from ray density), and view rays composite with the Oddy–Willis model.
+//! - [`plane_light`]: the exact irradiance of the light on planes of constant view depth (what
+//!   the GPU's light buffer holds at a plane), by the same forward rays.
+//! - [`measure`]: the comparisons tests and the bench make between images of light.
 
 // Per-channel loops index several [f64; 3] arrays at once; iterators would hide that.
 #![allow(clippy::needless_range_loop)]
 
+#[cfg(test)]
+mod lens_tests;
+pub mod measure;
 pub mod medium;
 pub mod photons;
+pub mod plane_light;
+#[cfg(test)]
+mod plane_tests;
 pub mod rk4;
+#[cfg(test)]
+mod scene_tests;
+pub mod shading;
 pub mod straight;
 #[cfg(test)]
 mod tests;

@@ -53,6 +53,9 @@ pub struct LightGrid {
     pub cell: f64,
     pub dims: [usize; 3],
     pub data: Vec<[f64; 3]>,
+    /// Sum of power × length × unit direction per cell (power averaged over the channels):
+    /// where the light travels, for highlights.
+    pub flux: Vec<[f64; 3]>,
     /// Rays traced.
     pub rays: u64,
     /// Power that entered the grid's box, left it, and was absorbed inside, per channel
@@ -69,6 +72,7 @@ impl LightGrid {
             cell,
             dims,
             data: vec![[0.0; 3]; dims[0] * dims[1] * dims[2]],
+            flux: vec![[0.0; 3]; dims[0] * dims[1] * dims[2]],
             rays: 0,
             power_in: [0.0; 3],
             power_out: [0.0; 3],
@@ -85,9 +89,10 @@ impl LightGrid {
         (p - self.origin) / self.cell - DVec3::splat(0.5)
     }
 
-    /// Adds `amount` at `p`, split trilinearly over the eight nearest cell centres (nothing
-    /// outside the grid).
-    fn splat(&mut self, p: DVec3, amount: [f64; 3]) {
+    /// Adds `amount` travelling along unit `dir` at `p`, split trilinearly over the eight
+    /// nearest cell centres (nothing outside the grid).
+    fn splat(&mut self, p: DVec3, amount: [f64; 3], dir: DVec3) {
+        let mean = (amount[0] + amount[1] + amount[2]) / 3.0;
         let q = self.coords(p);
         let base = q.floor();
         let f = q - base;
@@ -101,12 +106,23 @@ impl LightGrid {
             let i = self.index(idx[0] as usize, idx[1] as usize, idx[2] as usize);
             for c in 0..3 {
                 self.data[i][c] += w * amount[c];
+                self.flux[i][c] += w * mean * dir[c];
             }
         }
     }
 
     /// Trilinear fluence at `p`, clamped to the grid's edge cells.
     pub fn sample(&self, p: DVec3) -> [f64; 3] {
+        self.interpolate(&self.data, p)
+    }
+
+    /// The mean direction the light travels at `p` (unit), if any light gets there.
+    pub fn direction(&self, p: DVec3) -> Option<DVec3> {
+        let f = DVec3::from(self.interpolate(&self.flux, p));
+        (f.length_squared() > 0.0).then(|| f.normalize())
+    }
+
+    fn interpolate(&self, field: &[[f64; 3]], p: DVec3) -> [f64; 3] {
         let q = self.coords(p);
         let mut lo = [0usize; 3];
         let mut hi = [0usize; 3];
@@ -124,7 +140,7 @@ impl LightGrid {
             let o = [corner & 1, (corner >> 1) & 1, (corner >> 2) & 1];
             let idx = [0, 1, 2].map(|a| if o[a] == 1 { hi[a] } else { lo[a] });
             let w = (0..3).fold(1.0, |w, a| w * if o[a] == 1 { f[a] } else { 1.0 - f[a] });
-            let v = self.data[self.index(idx[0], idx[1], idx[2])];
+            let v = field[self.index(idx[0], idx[1], idx[2])];
             for c in 0..3 {
                 out[c] += w * v[c];
             }
@@ -133,9 +149,11 @@ impl LightGrid {
     }
 
     fn add(mut self, other: &LightGrid) -> LightGrid {
-        for (a, b) in self.data.iter_mut().zip(&other.data) {
-            for c in 0..3 {
-                a[c] += b[c];
+        for (field, o) in [(&mut self.data, &other.data), (&mut self.flux, &other.flux)] {
+            for (a, b) in field.iter_mut().zip(o) {
+                for c in 0..3 {
+                    a[c] += b[c];
+                }
             }
         }
         self.rays += other.rays;
@@ -224,10 +242,11 @@ fn deposit(grid: &mut LightGrid, a: DVec3, b: DVec3, len: f64, power: [f64; 3], 
     // k pieces, so that midpoints stay on a regular lattice and the splat sums stay uniform.
     let pieces = ((len / (0.5 * grid.cell) - 1e-6).ceil() as usize).max(1);
     let piece = len / pieces as f64;
+    let dir = (b - a).normalize_or_zero();
     let mut p = power;
     for k in 0..pieces {
         let (after, integral) = attenuate(p, tau, piece);
-        grid.splat(a.lerp(b, (k as f64 + 0.5) / pieces as f64), integral);
+        grid.splat(a.lerp(b, (k as f64 + 0.5) / pieces as f64), integral, dir);
         p = after;
     }
     p
@@ -346,7 +365,7 @@ fn trace_one<M: Medium + ?Sized>(
             budget -= len;
             continue;
         }
-        let next = rk4::step(medium, ray, h);
+        let next = rk4::step_on_shell(medium, ray, h);
         let tau = total_tau(medium, ray.x, next.x, 4);
         power = deposit(grid, ray.x, next.x, h, power, tau);
         ray = next;

@@ -329,9 +329,15 @@ fn fluence_grid_accounts_for_the_absorbed_power() {
 fn the_reference_depends_only_on_scene_volume_and_transfer() {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
     let mut files = vec![root.join("scene.rs")];
-    for dir in ["reference", "scene"] {
-        for entry in std::fs::read_dir(root.join(dir)).unwrap() {
-            files.push(entry.unwrap().path());
+    let mut dirs = vec![root.join("reference"), root.join("scene")];
+    while let Some(dir) = dirs.pop() {
+        for entry in std::fs::read_dir(dir).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                dirs.push(path);
+            } else {
+                files.push(path);
+            }
         }
     }
     let allowed = ["scene", "volume", "transfer", "Classify", "ExitClass"];

@@ -1,22 +1,22 @@
 //! The reference image: photon pass, then view rays integrated with RK4 in small steps,
-//! reading the fluence grid and compositing with the Oddy–Willis model (paper Eq. 14), then
-//! the environment in the final ray direction (Section 4.4).
+//! reading the fluence grid and compositing with the Oddy–Willis model (paper Eq. 14), with
+//! Cook–Torrance highlights where the rays cross an index interface, then the environment in
+//! the final ray direction (Section 4.4).
 
 use std::io::IsTerminal;
 
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
-use super::medium::{Medium, VolumeMedium};
+use super::medium::{Medium, SceneOptics, VolumeMedium};
 use super::photons::{self, DistantLight, LightGrid, PhotonSettings};
 use super::rk4::{self, Ray};
+use super::shading::{cook_torrance, fresnel_dielectric, interface_sides, FRESNEL_MIN_RELATIVE_STEP};
 use crate::scene::{light_direction, EnvMap, PreparedScene, RenderedImage, ViewSetup};
 use crate::scene::{Environment, Projection};
 
 #[derive(Debug, thiserror::Error)]
 pub enum ReferenceError {
-    #[error("the reference renderer does not model {0}")]
-    Unsupported(&'static str),
     #[error("cannot render this view: {0}")]
     Setup(String),
 }
@@ -89,9 +89,22 @@ fn dvec(v: Vec3) -> DVec3 {
     DVec3::new(v.x as f64, v.y as f64, v.z as f64)
 }
 
-/// Renders `prepared` at `width`×`height` (linear RGBA, alpha 1). Highlights (the specular
-/// term) are not modelled: the GPU evaluates them from the index change between two planes,
-/// which has no limit as the planes get closer; compare with `quality.specular = false`.
+/// The specular term of a scene that has one.
+struct Highlights {
+    /// `shading.specular`: the scale of the Cook–Torrance term.
+    scale: f64,
+    roughness: f64,
+    /// Propagation direction of the unrefracted light (world), where no photon arrived.
+    source: DVec3,
+}
+
+/// Gradients of the data value shorter than this (per world unit, relative to 1/voxel) give
+/// no surface normal, so no highlight (as the GPU's MIN_GRADIENT_LENGTH).
+const MIN_GRADIENT_PER_VOXEL: f64 = 1e-6;
+
+/// Renders `prepared` at `width`×`height` (linear RGBA, alpha 1): every feature the GPU
+/// renders, including highlights (counted once per interface crossed, see [`highlight`]), clip
+/// planes and a separate η volume.
 pub fn render(
     prepared: &PreparedScene,
     width: u32,
@@ -100,14 +113,8 @@ pub fn render(
     progress: bool,
 ) -> Result<RenderedImage, ReferenceError> {
     let scene = &prepared.scene;
-    if prepared.eta_volume.is_some() {
-        return Err(ReferenceError::Unsupported("a separate η volume"));
-    }
-    if scene.clip.is_some() {
-        return Err(ReferenceError::Unsupported("clip planes"));
-    }
     let vol = &prepared.volume;
-    let medium = VolumeMedium::new(vol, prepared.window(), &prepared.tf);
+    let medium = VolumeMedium::for_scene(prepared);
     let view = ViewSetup::new(scene, vol.dims, vol.spacing, width, height).map_err(ReferenceError::Setup)?;
     let rotation = glam::Mat3::from_mat4(view.world_from_view);
     let l = &scene.light;
@@ -121,6 +128,11 @@ pub fn render(
         b.set_message("photons");
     }
     let grid = photons::trace(&medium, &light, &settings.photons, bar.as_ref());
+    let highlights = SceneOptics::of(scene, &prepared.tf).specular.then_some(Highlights {
+        scale: scene.shading.specular as f64,
+        roughness: scene.shading.roughness as f64,
+        source: light.direction,
+    });
     let background = match (&scene.environment, &prepared.env) {
         (Environment::Color { color }, _) => Background::Color(color.map(|c| c as f64)),
         (_, Some(map)) => Background::Map(map),
@@ -158,7 +170,16 @@ pub fn render(
                                     dvec(rotation * Vec3::new(ndc.x as f32, ndc.y as f32, 1.0)).normalize(),
                                 )
                             };
-                            let c = view_ray(&medium, &grid, &background, o, d, h, settings.cutoff);
+                            let c = view_ray(
+                                &medium,
+                                &grid,
+                                highlights.as_ref(),
+                                &background,
+                                o,
+                                d,
+                                h,
+                                settings.cutoff,
+                            );
                             for k in 0..3 {
                                 sum[k] += c[k];
                             }
@@ -195,11 +216,13 @@ fn progress_bar(show: bool) -> Option<indicatif::ProgressBar> {
     Some(bar)
 }
 
-/// One view ray: Oddy–Willis compositing (Eq. 14) of the segments it crosses, then the
-/// background in its final direction.
-fn view_ray<M: Medium + ?Sized>(
-    medium: &M,
+/// One view ray: Oddy–Willis compositing (Eq. 14) of the segments it crosses, with highlights
+/// where it crosses an interface, then the background in its final direction.
+#[allow(clippy::too_many_arguments)]
+fn view_ray(
+    medium: &VolumeMedium,
     grid: &LightGrid,
+    highlights: Option<&Highlights>,
     background: &Background,
     o: DVec3,
     d: DVec3,
@@ -217,7 +240,8 @@ fn view_ray<M: Medium + ?Sized>(
     let mut budget = 8.0 * (t1 - t0) + 16.0 * h;
     while budget > 0.0 && inside(ray.x) && (1.0 - alpha) * m.iter().cloned().fold(0.0, f64::max) > cutoff {
         let dir = ray.direction();
-        let (next, len) = match medium.uniform_for(ray.x, dir) {
+        let uniform = medium.uniform_for(ray.x, dir);
+        let (next, len) = match uniform {
             // A uniform block without extinction contributes nothing: cross it at once.
             Some(len) if medium.optics(ray.x) == Default::default() || len < h => {
                 let len = len + 1e-6 * h;
@@ -238,7 +262,7 @@ fn view_ray<M: Medium + ?Sized>(
                 },
                 h,
             ),
-            None => (rk4::step(medium, ray, h), h),
+            None => (rk4::step_on_shell(medium, ray, h), h),
         };
         // Four sub-segments per step for extinction and light, each split further (down to
         // 1/64 of a step) wherever it is more than 5% opaque, so that dense surfaces are
@@ -247,6 +271,13 @@ fn view_ray<M: Medium + ?Sized>(
         for k in 0..SUB {
             let a = ray.x.lerp(next.x, k as f64 / SUB as f64);
             let b = ray.x.lerp(next.x, (k + 1) as f64 / SUB as f64);
+            // Within a uniform block η does not change: no interface.
+            if let (Some(hl), None) = (highlights, uniform) {
+                let s = highlight(medium, grid, hl, a, b);
+                for c in 0..3 {
+                    color[c] += (1.0 - alpha) * m[c] * s[c];
+                }
+            }
             composite(medium, grid, a, b, len / SUB as f64, 4, &mut color, &mut alpha, &mut m);
         }
         ray = next;
@@ -254,6 +285,43 @@ fn view_ray<M: Medium + ?Sized>(
     }
     let env = background.radiance(ray.v);
     [0, 1, 2].map(|c| color[c] + (1.0 - alpha) * m[c] * env[c])
+}
+
+/// The highlight reflected toward the viewer from the straight piece `a` → `b` of a view ray:
+/// where η changes along the piece, the interface there (normal from the data's gradient,
+/// η on its two sides from [`interface_sides`]) reflects Fresnel × Cook–Torrance × the light
+/// arriving, weighted by the fraction of the interface's index step the piece crosses. A ray
+/// crossing an interface thus counts it once, however finely it is stepped.
+fn highlight(medium: &VolumeMedium, grid: &LightGrid, hl: &Highlights, a: DVec3, b: DVec3) -> [f64; 3] {
+    let none = [0.0; 3];
+    let crossed = (medium.eta(b) - medium.eta(a)).abs();
+    if crossed == 0.0 {
+        return none;
+    }
+    let p = a.lerp(b, 0.5);
+    let g = medium.value_gradient(p);
+    if g.length() * medium.voxel_length() <= MIN_GRADIENT_PER_VOXEL {
+        return none;
+    }
+    let v = (a - b).normalize();
+    let mut n = -g.normalize();
+    if n.dot(v) < 0.0 {
+        n = -n;
+    }
+    let (eta_view, eta_far) = interface_sides(medium, p, n);
+    let step = (eta_far - eta_view).abs();
+    if step <= FRESNEL_MIN_RELATIVE_STEP * eta_view.max(eta_far) {
+        return none;
+    }
+    let weight = (crossed / step).min(1.0);
+    let l = -grid.direction(p).unwrap_or(hl.source);
+    let f = fresnel_dielectric(n.dot(v), eta_view, eta_far);
+    let s = hl.scale * f * cook_torrance(n, l, v, hl.roughness) * weight;
+    if s == 0.0 {
+        return none;
+    }
+    let light = grid.sample(p);
+    [0, 1, 2].map(|c| s * light[c])
 }
 
 /// Oddy–Willis compositing (Eq. 14) of the straight piece from `a` to `b` (length `len`),
