@@ -3,9 +3,9 @@
 
 use glam::{DMat4, DVec2, DVec3};
 
+use super::super::medium::Medium;
+use super::super::rk4::{self, Ray};
 use super::PlaneView;
-use crate::reference::medium::Medium;
-use crate::reference::rk4::{self, Ray};
 
 /// Rays below this fraction of their starting power are dropped (counted as absorbed).
 const POWER_CUTOFF: f64 = 1e-12;
