@@ -131,6 +131,8 @@ pub fn ball_lens(radius: f64) -> Result<(Volume, TransferFunctions, f64), Volume
             points: vec![[0.0, 1.0], [0.5, BALL_ETA]],
         },
         medium: ColorRamp::constant([1.0; 3]),
+        albedo: None,
+        anisotropy: None,
     };
     Ok((Volume::new(dims, [1.0; 3], data)?, tf, centre_z))
 }
