@@ -9,6 +9,7 @@ pub mod light;
 pub mod metrics;
 pub mod plot;
 mod report;
+pub mod scatter;
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};

@@ -57,6 +57,11 @@ pub struct BenchArgs {
     /// --light, the exact plane trace's (versus rays per texel and step); no GPU.
     #[arg(long)]
     convergence: bool,
+    /// Instead of the sweep, the beam-spread table: the Monte Carlo reference's spread of a
+    /// pencil beam in Premoze et al.'s Fig. 4 medium against their Eq. 1 and 18, and against
+    /// the exact moments; writes scatter.md; no GPU.
+    #[arg(long)]
+    scatter: bool,
 }
 
 pub fn bench(args: &BenchArgs) -> Result<()> {
@@ -84,6 +89,15 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
         plan.resolution = r;
     }
     plan.highlights = !args.no_highlights;
+    if args.scatter {
+        std::fs::create_dir_all(&args.out)
+            .with_context(|| format!("creating {}", args.out.display()))
+            .map_err(input)?;
+        let photons = if args.quick { 20_000 } else { 200_000 };
+        print!("{}", bench::scatter::run(photons, &args.out)?);
+        eprintln!("wrote {}", args.out.join("scatter.md").display());
+        return Ok(());
+    }
     if args.light && args.convergence {
         return light_convergence(args);
     }
