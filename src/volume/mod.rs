@@ -251,8 +251,10 @@ pub enum VolumeError {
         actual_bytes: u64,
         layout: String,
     },
-    #[error("NRRD header of {}{}: {message}", path.display(), line_text(line))]
+    /// A header (or sidecar) that cannot be read; `format` names the file's format.
+    #[error("{format} header of {}{}: {message}", path.display(), line_text(line))]
     Header {
+        format: &'static str,
         path: PathBuf,
         line: Option<usize>,
         message: String,

@@ -69,6 +69,7 @@ struct Fields {
 /// a detached data file.
 pub(super) fn read_header<R: BufRead>(reader: &mut R, path: &Path) -> Result<NrrdHeader, VolumeError> {
     let header_err = |line: usize, message: String| VolumeError::Header {
+        format: "NRRD",
         path: path.to_path_buf(),
         line: Some(line),
         message,
@@ -182,6 +183,7 @@ fn parse_field(fields: &mut Fields, key: &str, value: &str, path: &Path) -> Resu
 
 fn finish(fields: Fields, path: &Path) -> Result<NrrdHeader, VolumeError> {
     let missing = |name: &str| VolumeError::Header {
+        format: "NRRD",
         path: path.to_path_buf(),
         line: None,
         message: format!("missing required field '{name}'"),
@@ -230,6 +232,7 @@ fn read_line<R: BufRead>(reader: &mut R, path: &Path, line_no: usize) -> Result<
         return Ok(None);
     }
     let header_err = |message: &str| VolumeError::Header {
+        format: "NRRD",
         path: path.to_path_buf(),
         line: Some(line_no),
         message: message.to_string(),
