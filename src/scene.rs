@@ -10,7 +10,9 @@ use crate::volume::series::Series;
 use crate::volume::{self, raw::RawDesc, Format, Loaded, Volume, VolumeError, VolumeMeta};
 
 mod builtin;
+mod views;
 pub use builtin::{builtin, BuiltinScene, BUILTIN_SCENES};
+pub use views::{View, MAX_PITCH_DEG, VIEW_NAMES};
 
 /// The largest light angle off the view direction. The planes are parallel to the image, so
 /// light at 90° would travel inside one plane and never reach the next: the backward lookup
@@ -141,12 +143,16 @@ pub enum Projection {
 }
 
 /// An orbit camera around the volume's centre. Distances are in units of the volume's
-/// bounding-sphere radius, so scenes do not depend on the voxel spacing.
+/// bounding-sphere radius, so scenes do not depend on the voxel spacing. Orientation and the
+/// named anatomical views: [`views`](self::View).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct Camera {
     pub yaw_deg: f32,
     pub pitch_deg: f32,
+    /// Rotation of the image about the view direction (positive turns the camera clockwise,
+    /// so the picture turns counter-clockwise).
+    pub roll_deg: f32,
     pub distance: f32,
     pub fov_deg: f32,
     pub projection: Projection,
@@ -161,6 +167,7 @@ impl Default for Camera {
         Camera {
             yaw_deg: 0.0,
             pitch_deg: 20.0,
+            roll_deg: 0.0,
             distance: 3.0,
             fov_deg: 40.0,
             projection: Projection::Perspective,
@@ -507,7 +514,7 @@ impl Scene {
             && (1.0..=170.0).contains(&c.fov_deg)
             && c.zoom.is_finite()
             && c.zoom > 0.0
-            && [c.yaw_deg, c.pitch_deg].iter().chain(&c.target).all(|v| v.is_finite());
+            && [c.yaw_deg, c.pitch_deg, c.roll_deg].iter().chain(&c.target).all(|v| v.is_finite());
         if !camera_ok {
             return bad(
                 "camera: distance and zoom must be finite and > 0, fov_deg in [1, 170], angles and target finite"

@@ -7,6 +7,7 @@ pub mod meta;
 pub mod metaimage;
 pub mod nifti;
 pub mod nrrd;
+pub mod orient;
 pub mod procedural;
 pub mod raw;
 mod read;
@@ -20,6 +21,7 @@ use std::path::{Path, PathBuf};
 
 pub use histogram::Histogram;
 pub use meta::{Format, Loaded, Units, VolumeMeta, CT_WINDOW};
+pub use orient::PatientFrame;
 pub use raw::{Endian, RawDesc, ScalarType};
 
 /// Largest voxel count any loader or generator accepts (2^31). Checked before allocating,
