@@ -110,7 +110,11 @@ fn header_errors_name_the_format_of_the_file() {
     let cases: [(&str, &[u8], &str); 6] = [
         ("bad.nrrd", b"NRRD0004\ntype: flot\n\n", "NRRD"),
         ("bad.nii", &[7u8; 400], "NIfTI"),
-        ("bad.mha", b"NDims = 3\nDimSize = 2 2\nElementDataFile = LOCAL\n", "MetaImage"),
+        (
+            "bad.mha",
+            b"NDims = 3\nDimSize = 2 2\nElementDataFile = LOCAL\n",
+            "MetaImage",
+        ),
         ("bad.vti", b"<VTKFile type=\"PolyData\"></VTKFile>", "VTK ImageData"),
         ("series/broken.dcm", &dicom, "DICOM"),
         ("bad.raw.json", b"{\"dims\": [2, 2]}", "raw sidecar"),

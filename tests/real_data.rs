@@ -71,6 +71,7 @@ fn render_ct(tf: TransferFunctions) -> (Vec<[f32; 4]>, [f32; 3], [usize; 3]) {
         .expect("the CT head scene parses");
     scene.volume = VolumeSource::File {
         path: dir.join("ct-head.nhdr"),
+        series: None,
     };
     scene.transfer = TransferSource::Inline(tf);
     scene.clip = None;

@@ -21,7 +21,6 @@ pub const NEAR_PLANE: f32 = 1e-3;
 /// More planes than this means a sample distance far below a voxel on a huge volume.
 pub const MAX_PLANES: u32 = 1 << 15;
 
-
 /// The view transform and plane sweep of one render.
 #[derive(Clone, Debug)]
 pub struct ViewSetup {

@@ -180,7 +180,12 @@ mod tests {
 
     #[test]
     fn basis_is_orthonormal_and_matches_the_orbit_at_any_angle() {
-        for (yaw, pitch, roll) in [(0.0, 20.0, 0.0), (123.0, -45.0, 30.0), (10.0, 90.0, -60.0), (200.0, -90.0, 5.0)] {
+        for (yaw, pitch, roll) in [
+            (0.0, 20.0, 0.0),
+            (123.0, -45.0, 30.0),
+            (10.0, 90.0, -60.0),
+            (200.0, -90.0, 5.0),
+        ] {
             let c = Camera {
                 yaw_deg: yaw,
                 pitch_deg: pitch,
@@ -189,7 +194,10 @@ mod tests {
             };
             let (r, d, f) = c.basis();
             let m = Mat3::from_cols(r, d, f);
-            assert!((m * m.transpose()).abs_diff_eq(Mat3::IDENTITY, 1e-5), "{yaw} {pitch} {roll}");
+            assert!(
+                (m * m.transpose()).abs_diff_eq(Mat3::IDENTITY, 1e-5),
+                "{yaw} {pitch} {roll}"
+            );
             // The renderer's convention: down = right × forward.
             assert!(close(r.cross(f), d));
         }

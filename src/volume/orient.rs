@@ -58,9 +58,10 @@ impl PatientFrame {
         self.axes
             .iter()
             .map(|a| {
-                let (k, v) = (0..3)
-                    .map(|k| (k, a[k]))
-                    .fold((0, 0.0f64), |best, c| if c.1.abs() > best.1.abs() { c } else { best });
+                let (k, v) =
+                    (0..3)
+                        .map(|k| (k, a[k]))
+                        .fold((0, 0.0f64), |best, c| if c.1.abs() > best.1.abs() { c } else { best });
                 let letter = match (k, v >= 0.0) {
                     (0, true) => 'L',
                     (0, false) => 'R',
@@ -76,6 +77,22 @@ impl PatientFrame {
                 }
             })
             .collect()
+    }
+
+    /// [`PatientFrame::axis_codes`] in words: "left, posterior, superior".
+    pub fn axis_words(&self) -> String {
+        self.axis_codes()
+            .chars()
+            .map(|c| match c.to_ascii_uppercase() {
+                'L' => "left",
+                'R' => "right",
+                'A' => "anterior",
+                'P' => "posterior",
+                'S' => "superior",
+                _ => "inferior",
+            })
+            .collect::<Vec<_>>()
+            .join(", ")
     }
 
     /// The order and signs of the voxel axes that bring them closest to the display axes:
@@ -114,6 +131,20 @@ impl PatientFrame {
         DMat3::from_cols(x, y, z).as_mat3()
     }
 
+    /// Degrees between the voxel axes and the nearest body axes, whatever their order: 0 for
+    /// axial, sagittal and coronal grids.
+    pub fn obliquity_deg(&self) -> f64 {
+        let (order, flip) = self.display_permutation();
+        let axes = [0, 1, 2].map(|j| {
+            if flip[j] {
+                -self.axes[order[j]]
+            } else {
+                self.axes[order[j]]
+            }
+        });
+        PatientFrame { axes, ..self.clone() }.oblique_deg()
+    }
+
     /// Angle in degrees of the residual rotation [`PatientFrame::display_from_world`].
     pub fn oblique_deg(&self) -> f64 {
         let r = self.display_from_world().as_dmat3();
@@ -143,7 +174,13 @@ impl Loaded {
                     origin += frame.axes[order[j]] * ((dims[j] - 1) as f64 * f64::from(spacing[j]));
                 }
             }
-            let axes = [0, 1, 2].map(|j| if flip[j] { -frame.axes[order[j]] } else { frame.axes[order[j]] });
+            let axes = [0, 1, 2].map(|j| {
+                if flip[j] {
+                    -frame.axes[order[j]]
+                } else {
+                    frame.axes[order[j]]
+                }
+            });
             self.volume = Volume {
                 dims,
                 spacing,
@@ -153,7 +190,11 @@ impl Loaded {
             self.meta.patient = Some(PatientFrame { axes, origin, ..frame });
             self.meta.notes.push(format!(
                 "shown in anatomical orientation: voxel axes {before} reordered to {}",
-                self.meta.patient.as_ref().map(PatientFrame::axis_codes).unwrap_or_default()
+                self.meta
+                    .patient
+                    .as_ref()
+                    .map(PatientFrame::axis_codes)
+                    .unwrap_or_default()
             ));
         }
         if let Some(frame) = &self.meta.patient {
@@ -236,7 +277,12 @@ mod tests {
                 }
             }
         }
-        assert!(after.meta.patient.unwrap().display_from_world().abs_diff_eq(Mat3::IDENTITY, 1e-6));
+        assert!(after
+            .meta
+            .patient
+            .unwrap()
+            .display_from_world()
+            .abs_diff_eq(Mat3::IDENTITY, 1e-6));
     }
 
     #[test]
@@ -271,7 +317,11 @@ mod tests {
             let display = DVec3::new(lps.x, lps.z, lps.y).as_vec3();
             assert!((r * glam::Vec3::AXES[k] - display).length() < 1e-5);
         }
-        assert!(after.meta.notes.iter().any(|n| n.contains("oblique")), "{:?}", after.meta.notes);
+        assert!(
+            after.meta.notes.iter().any(|n| n.contains("oblique")),
+            "{:?}",
+            after.meta.notes
+        );
     }
 
     #[test]

@@ -67,13 +67,18 @@ pub(crate) fn load_series(files: &[PathBuf], root: &Path) -> Result<Loaded, Volu
         meta.units = Units::Named(units.clone());
     }
     if first.frames.len() > 1 {
-        meta.notes.push(format!("{} frames: {}", first.frames.len(), first.layout));
+        meta.notes
+            .push(format!("{} frames: {}", first.frames.len(), first.layout));
     }
     if f.samples == 3 {
-        meta.notes.push(format!("colour ({}) shown as luminance (0.299 R + 0.587 G + 0.114 B)", f.photometric));
+        meta.notes.push(format!(
+            "colour ({}) shown as luminance (0.299 R + 0.587 G + 0.114 B)",
+            f.photometric
+        ));
     }
     if f.bits_allocated == 1 {
-        meta.notes.push("1-bit frames: values 0 and 1 (segment numbers in a segmentation)".into());
+        meta.notes
+            .push("1-bit frames: values 0 and 1 (segment numbers in a segmentation)".into());
     }
     let rescaled = slices
         .iter()
@@ -143,7 +148,11 @@ fn build(
     let (rows, columns) = (first.format.rows, first.format.columns);
     let orientation = slices[0].geometry.orientation;
     if let Some(o) = orientation {
-        if slices.iter().any(|s| s.geometry.orientation.is_some_and(|q| q[0].dot(o[0]) < 0.999 || q[1].dot(o[1]) < 0.999)) {
+        if slices.iter().any(|s| {
+            s.geometry
+                .orientation
+                .is_some_and(|q| q[0].dot(o[0]) < 0.999 || q[1].dot(o[1]) < 0.999)
+        }) {
             return Err(header_error(
                 root,
                 "the images of the series lie in different orientations (a localizer?): not one volume",
@@ -163,10 +172,17 @@ fn build(
     if positioned {
         slices.sort_by(|a, b| depth(a).total_cmp(&depth(b)).then(a.order.cmp(&b.order)));
         slices = merge_shared_positions(slices, first, multi_frame, &mut meta, root, depth)?;
-        z_spacing = if slices.len() > 1 { median_gap(&slices, depth) } else { first.slice_thickness.unwrap_or(1.0) };
+        z_spacing = if slices.len() > 1 {
+            median_gap(&slices, depth)
+        } else {
+            first.slice_thickness.unwrap_or(1.0)
+        };
     } else {
         slices.sort_by_key(|s| (s.order, s.file));
-        let given = first.spacing_between.or(first.slice_thickness).filter(|s| s.is_finite() && *s > 0.0);
+        let given = first
+            .spacing_between
+            .or(first.slice_thickness)
+            .filter(|s| s.is_finite() && *s > 0.0);
         z_spacing = given.unwrap_or(row_spacing.min(col_spacing));
         if slices.len() > 1 {
             meta.notes.push(match given {
@@ -192,7 +208,9 @@ fn build(
         ));
     }
     let framed = orientation.is_some() && (positioned || slices.len() == 1);
-    let data = if positioned { regular_stack(&slices, z_spacing, depth, &mut meta)? } else {
+    let data = if positioned {
+        regular_stack(&slices, z_spacing, depth, &mut meta)?
+    } else {
         slices.into_iter().flat_map(|s| s.values).collect()
     };
     let plane = rows * columns;
@@ -275,11 +293,15 @@ fn regular_stack(
     }
     let span = depths[depths.len() - 1] - depths[0];
     let planes = (span / spacing).round() as usize + 1;
-    let (lo, hi) = gaps.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), g| (lo.min(*g), hi.max(*g)));
-    let widest = gaps.iter().enumerate().fold((0, 0.0), |best, (i, g)| if *g > best.1 { (i, *g) } else { best });
-    let mut note = format!(
-        "slice gaps vary between {lo:.3} and {hi:.3} mm; resampled onto {planes} slices {spacing:.3} mm apart"
-    );
+    let (lo, hi) = gaps
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(lo, hi), g| (lo.min(*g), hi.max(*g)));
+    let widest = gaps
+        .iter()
+        .enumerate()
+        .fold((0, 0.0), |best, (i, g)| if *g > best.1 { (i, *g) } else { best });
+    let mut note =
+        format!("slice gaps vary between {lo:.3} and {hi:.3} mm; resampled onto {planes} slices {spacing:.3} mm apart");
     if widest.1 > 1.5 * spacing {
         note.push_str(&format!(
             " (a slice seems to be missing between {:.2} and {:.2} mm along the stack)",
@@ -299,7 +321,11 @@ fn regular_stack(
         }
         let (a, b) = (&slices[j], &slices[(j + 1).min(slices.len() - 1)]);
         let width = depths[(j + 1).min(slices.len() - 1)] - depths[j];
-        let t = if width > 0.0 { ((z - depths[j]) / width).clamp(0.0, 1.0) as f32 } else { 0.0 };
+        let t = if width > 0.0 {
+            ((z - depths[j]) / width).clamp(0.0, 1.0) as f32
+        } else {
+            0.0
+        };
         out.extend(a.values.iter().zip(&b.values).map(|(x, y)| x + (y - x) * t));
     }
     Ok(out)

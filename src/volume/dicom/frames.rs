@@ -76,10 +76,22 @@ fn unknown_value(obj: &InMemDicomObject, tag: Tag) -> Option<Result<String, Vec<
     let bytes = e.to_bytes().ok()?;
     let vr = StandardDataDictionary.by_tag(tag)?.vr().relaxed();
     Some(match vr {
-        VR::US => Err(bytes.chunks_exact(2).map(|c| i64::from(u16::from_le_bytes([c[0], c[1]]))).collect()),
-        VR::SS => Err(bytes.chunks_exact(2).map(|c| i64::from(i16::from_le_bytes([c[0], c[1]]))).collect()),
-        VR::UL => Err(bytes.chunks_exact(4).map(|c| i64::from(u32::from_le_bytes([c[0], c[1], c[2], c[3]]))).collect()),
-        VR::SL => Err(bytes.chunks_exact(4).map(|c| i64::from(i32::from_le_bytes([c[0], c[1], c[2], c[3]]))).collect()),
+        VR::US => Err(bytes
+            .chunks_exact(2)
+            .map(|c| i64::from(u16::from_le_bytes([c[0], c[1]])))
+            .collect()),
+        VR::SS => Err(bytes
+            .chunks_exact(2)
+            .map(|c| i64::from(i16::from_le_bytes([c[0], c[1]])))
+            .collect()),
+        VR::UL => Err(bytes
+            .chunks_exact(4)
+            .map(|c| i64::from(u32::from_le_bytes([c[0], c[1], c[2], c[3]])))
+            .collect()),
+        VR::SL => Err(bytes
+            .chunks_exact(4)
+            .map(|c| i64::from(i32::from_le_bytes([c[0], c[1], c[2], c[3]])))
+            .collect()),
         _ => Ok(String::from_utf8_lossy(&bytes).into_owned()),
     })
 }
@@ -109,7 +121,13 @@ pub(crate) fn floats(obj: &InMemDicomObject, tag: Tag) -> Option<Vec<f64>> {
 
 pub(crate) fn int(obj: &InMemDicomObject, tag: Tag) -> Option<i64> {
     match unknown_value(obj, tag) {
-        Some(Ok(t)) => t.trim_matches(|c: char| c == '\0' || c.is_whitespace()).split('\\').next()?.trim().parse().ok(),
+        Some(Ok(t)) => t
+            .trim_matches(|c: char| c == '\0' || c.is_whitespace())
+            .split('\\')
+            .next()?
+            .trim()
+            .parse()
+            .ok(),
         Some(Err(words)) => words.first().copied(),
         None => obj.get(tag)?.to_int::<i64>().ok(),
     }
@@ -149,7 +167,9 @@ pub(crate) fn image_info(obj: &InMemDicomObject, path: PathBuf) -> Result<ImageI
     } else {
         None
     };
-    let bits_allocated = u16_of(tags::BITS_ALLOCATED).or(float_bits).ok_or("missing BitsAllocated")?;
+    let bits_allocated = u16_of(tags::BITS_ALLOCATED)
+        .or(float_bits)
+        .ok_or("missing BitsAllocated")?;
     let bits_stored = u16_of(tags::BITS_STORED).unwrap_or(bits_allocated);
     let format = PixelFormat {
         rows,
@@ -245,7 +265,9 @@ fn top_geometry(obj: &InMemDicomObject) -> FrameGeometry {
             [r, c] => Some([r, c]),
             _ => None,
         }),
-        slope: floats(obj, tags::RESCALE_SLOPE).and_then(|v| v.first().copied()).unwrap_or(1.0),
+        slope: floats(obj, tags::RESCALE_SLOPE)
+            .and_then(|v| v.first().copied())
+            .unwrap_or(1.0),
         intercept: floats(obj, tags::RESCALE_INTERCEPT)
             .and_then(|v| v.first().copied())
             .unwrap_or(0.0),
@@ -256,7 +278,11 @@ fn top_geometry(obj: &InMemDicomObject) -> FrameGeometry {
 /// Ultrasound regions give their pixel size in cm (Physical Delta X/Y, units code 3 = cm).
 fn ultrasound_spacing(obj: &InMemDicomObject) -> Option<Vec<f64>> {
     let region = item(obj, tags::SEQUENCE_OF_ULTRASOUND_REGIONS)?;
-    let cm = |tag| floats(region, tag).and_then(|v| v.first().copied()).map(|v| v.abs() * 10.0);
+    let cm = |tag| {
+        floats(region, tag)
+            .and_then(|v| v.first().copied())
+            .map(|v| v.abs() * 10.0)
+    };
     if int(region, tags::PHYSICAL_UNITS_X_DIRECTION) != Some(3) {
         return None;
     }

@@ -58,10 +58,7 @@ pub fn open_dicom(path: &Path, series: Option<&str>) -> Result<Loaded, VolumeErr
             .find(|s| s.uid == key || key.parse::<usize>().is_ok_and(|n| n == s.number))
             .ok_or_else(|| VolumeError::DicomSeries {
                 path: path.to_path_buf(),
-                message: format!(
-                    "no series '{key}'; there are:\n{}",
-                    series_table(&scan.series)
-                ),
+                message: format!("no series '{key}'; there are:\n{}", series_table(&scan.series)),
             })?,
         None if scan.series.len() == 1 => &scan.series[0],
         None => {
@@ -78,7 +75,11 @@ pub fn open_dicom(path: &Path, series: Option<&str>) -> Result<Loaded, VolumeErr
             chosen.number,
             scan.series.len(),
             chosen.uid,
-            if chosen.description.is_empty() { "no description" } else { &chosen.description }
+            if chosen.description.is_empty() {
+                "no description"
+            } else {
+                &chosen.description
+            }
         ));
     }
     if !scan.unreadable.is_empty() {
@@ -102,13 +103,23 @@ fn checked_scan(path: &Path) -> Result<scan::Scan, VolumeError> {
     }
     if let Some((p, kind)) = scan.non_image.first() {
         let others = scan.non_image.len() - 1;
-        let more = if others > 0 { format!(" (and {others} more objects without images)") } else { String::new() };
-        return Err(header_error(p, format!("this DICOM object holds no image: {kind}{more}")));
+        let more = if others > 0 {
+            format!(" (and {others} more objects without images)")
+        } else {
+            String::new()
+        };
+        return Err(header_error(
+            p,
+            format!("this DICOM object holds no image: {kind}{more}"),
+        ));
     }
     if let Some((_, why)) = scan.unreadable.first() {
         return Err(VolumeError::DicomSeries {
             path: path.to_path_buf(),
-            message: format!("no readable image ({} unreadable files; first: {why})", scan.unreadable.len()),
+            message: format!(
+                "no readable image ({} unreadable files; first: {why})",
+                scan.unreadable.len()
+            ),
         });
     }
     Err(header_error(

@@ -12,8 +12,8 @@ use std::path::Path;
 use dicom_core::dictionary::{DataDictionary, DataDictionaryEntry, VirtualVr};
 use dicom_core::{Tag, VR};
 use dicom_dictionary_std::StandardDataDictionary;
-use dicom_transfer_syntax_registry::TransferSyntaxIndex;
 use dicom_object::{FileDicomObject, FileMetaTableBuilder, InMemDicomObject};
+use dicom_transfer_syntax_registry::TransferSyntaxIndex;
 use dicom_transfer_syntax_registry::TransferSyntaxRegistry;
 use flate2::read::DeflateDecoder;
 
@@ -86,9 +86,9 @@ pub(crate) fn parse_bytes(bytes: &[u8], path: &Path, headers_only: bool) -> Resu
             (MetaElements::default(), 0, syntax.to_string())
         }
     };
-    let ts = TransferSyntaxRegistry.get(&syntax).ok_or_else(|| {
-        header_error(path, format!("unknown transfer syntax '{syntax}'"))
-    })?;
+    let ts = TransferSyntaxRegistry
+        .get(&syntax)
+        .ok_or_else(|| header_error(path, format!("unknown transfer syntax '{syntax}'")))?;
     let inflated;
     let (data, data_syntax) = if syntax == DEFLATED {
         inflated = inflate(&bytes[data_at..]).map_err(|m| header_error(path, m))?;
@@ -105,7 +105,11 @@ pub(crate) fn parse_bytes(bytes: &[u8], path: &Path, headers_only: bool) -> Resu
     let explicit = data_syntax != IMPLICIT_VR_LE;
     let big = data_syntax == EXPLICIT_VR_BE;
     let pixels_at = walk(data, explicit, big).map_err(|m| header_error(path, m))?;
-    let end = if headers_only { pixels_at.unwrap_or(data.len()) } else { data.len() };
+    let end = if headers_only {
+        pixels_at.unwrap_or(data.len())
+    } else {
+        data.len()
+    };
     let dataset_ts = TransferSyntaxRegistry
         .get(data_syntax)
         .ok_or_else(|| header_error(path, format!("unknown transfer syntax '{data_syntax}'")))?;
@@ -129,7 +133,6 @@ pub(crate) fn parse_bytes(bytes: &[u8], path: &Path, headers_only: bool) -> Resu
     Ok(Parsed {
         object: dataset.with_exact_meta(file_meta),
         has_pixels: pixels_at.is_some(),
-
     })
 }
 
@@ -253,12 +256,20 @@ impl<'a> Cursor<'a> {
 
     fn u16(&mut self) -> Option<u16> {
         let b = self.word::<2>()?;
-        Some(if self.big { u16::from_be_bytes(b) } else { u16::from_le_bytes(b) })
+        Some(if self.big {
+            u16::from_be_bytes(b)
+        } else {
+            u16::from_le_bytes(b)
+        })
     }
 
     fn u32(&mut self) -> Option<u32> {
         let b = self.word::<4>()?;
-        Some(if self.big { u32::from_be_bytes(b) } else { u32::from_le_bytes(b) })
+        Some(if self.big {
+            u32::from_be_bytes(b)
+        } else {
+            u32::from_le_bytes(b)
+        })
     }
 
     fn header(&mut self) -> Option<Header> {

@@ -81,8 +81,14 @@ fn rle_frame(fragment: &[u8], pixels: usize, samples: usize, bytes_per_sample: u
     let mut out = vec![0u8; pixels * planes];
     for s in 0..segments {
         let start = word(1 + s).ok_or("truncated RLE header")?;
-        let end = if s + 1 < segments { word(2 + s).ok_or("truncated RLE header")? } else { fragment.len() };
-        let data = fragment.get(start..end.max(start)).ok_or("segment offset past the end")?;
+        let end = if s + 1 < segments {
+            word(2 + s).ok_or("truncated RLE header")?
+        } else {
+            fragment.len()
+        };
+        let data = fragment
+            .get(start..end.max(start))
+            .ok_or("segment offset past the end")?;
         let (sample, byte) = (s / bytes_per_sample, bytes_per_sample - 1 - s % bytes_per_sample);
         let mut at = 0;
         let mut i = 0;
@@ -96,7 +102,9 @@ fn rle_frame(fragment: &[u8], pixels: usize, samples: usize, bytes_per_sample: u
             let n = data[at] as i8;
             at += 1;
             if n >= 0 {
-                let run = data.get(at..at + n as usize + 1).ok_or("literal run past the segment")?;
+                let run = data
+                    .get(at..at + n as usize + 1)
+                    .ok_or("literal run past the segment")?;
                 for &v in run {
                     put(&mut i, v);
                 }
@@ -214,7 +222,11 @@ fn values(bytes: &[u8], f: &PixelFormat, k: usize, pixel_count: usize, path: &Pa
             ))
         }
     };
-    Ok(if f.samples == 3 { luminance(&raw, f, pixel_count) } else { raw })
+    Ok(if f.samples == 3 {
+        luminance(&raw, f, pixel_count)
+    } else {
+        raw
+    })
 }
 
 /// One luminance value per pixel of three-sample data.

@@ -62,7 +62,9 @@ enum Entry {
 /// What kind of object a SOP class is, for "this DICOM object holds no image: …".
 pub(crate) fn object_kind(sop_class: &str) -> String {
     let uid = sop_class.trim_end_matches('\0');
-    let name = StandardSopClassDictionary.by_uid(uid).map(|e| e.name.trim_end_matches(" Storage"));
+    let name = StandardSopClassDictionary
+        .by_uid(uid)
+        .map(|e| e.name.trim_end_matches(" Storage"));
     let category = if uid.starts_with("1.2.840.10008.5.1.4.1.1.88.") {
         Some("Structured Report")
     } else if uid.starts_with("1.2.840.10008.5.1.4.1.1.9.") {
@@ -143,15 +145,21 @@ pub(crate) fn scan(path: &Path) -> Result<Scan, VolumeError> {
                 ))
             }
         }
-        let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        let dir = path
+            .parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
         let mut files = Vec::new();
         walk(dir, MAX_DEPTH, &mut files)?;
         files
     };
-    let entries: Vec<(PathBuf, Entry)> = files.into_par_iter().map(|p| {
-        let e = classify(&p);
-        (p, e)
-    }).collect();
+    let entries: Vec<(PathBuf, Entry)> = files
+        .into_par_iter()
+        .map(|p| {
+            let e = classify(&p);
+            (p, e)
+        })
+        .collect();
     let mut scan = Scan {
         series: Vec::new(),
         not_dicom: 0,
@@ -209,7 +217,10 @@ fn walk(dir: &Path, depth: usize, out: &mut Vec<PathBuf>) -> Result<(), VolumeEr
     entries.sort();
     for p in entries {
         if out.len() >= MAX_FILES {
-            return Err(header_error(dir, format!("more than {MAX_FILES} files in the folder tree")));
+            return Err(header_error(
+                dir,
+                format!("more than {MAX_FILES} files in the folder tree"),
+            ));
         }
         if p.is_file() && !is_dicomdir(&p) {
             out.push(p);
@@ -240,7 +251,10 @@ fn dicomdir_files(path: &Path) -> Result<Vec<PathBuf>, VolumeError> {
         for part in id.iter() {
             let part = part.trim();
             if part.is_empty() || part == ".." || part.contains('/') {
-                return Err(header_error(path, format!("Referenced File ID '{}' is not a relative path", id.join("\\"))));
+                return Err(header_error(
+                    path,
+                    format!("Referenced File ID '{}' is not a relative path", id.join("\\")),
+                ));
             }
             file.push(part);
         }

@@ -61,22 +61,46 @@ fn image_object(s: &SliceSpec) -> InMemDicomObject {
         o.put(DataElement::new(tag, vr, value));
     };
     put(tags::SOP_CLASS_UID, VR::UI, PrimitiveValue::from(CT));
-    put(tags::SOP_INSTANCE_UID, VR::UI, PrimitiveValue::from(format!("2.25.{}", s.instance + 1000)));
+    put(
+        tags::SOP_INSTANCE_UID,
+        VR::UI,
+        PrimitiveValue::from(format!("2.25.{}", s.instance + 1000)),
+    );
     put(tags::MODALITY, VR::CS, PrimitiveValue::from("CT"));
-    put(tags::SERIES_INSTANCE_UID, VR::UI, PrimitiveValue::from(s.series.as_str()));
-    put(tags::SERIES_DESCRIPTION, VR::LO, PrimitiveValue::from(format!("series {}", s.series)));
-    put(tags::INSTANCE_NUMBER, VR::IS, PrimitiveValue::from(s.instance.to_string()));
+    put(
+        tags::SERIES_INSTANCE_UID,
+        VR::UI,
+        PrimitiveValue::from(s.series.as_str()),
+    );
+    put(
+        tags::SERIES_DESCRIPTION,
+        VR::LO,
+        PrimitiveValue::from(format!("series {}", s.series)),
+    );
+    put(
+        tags::INSTANCE_NUMBER,
+        VR::IS,
+        PrimitiveValue::from(s.instance.to_string()),
+    );
     put(tags::IMAGE_POSITION_PATIENT, VR::DS, ds(&s.position));
     put(tags::IMAGE_ORIENTATION_PATIENT, VR::DS, ds(&s.orientation));
     put(tags::SAMPLES_PER_PIXEL, VR::US, PrimitiveValue::from(1u16));
-    put(tags::PHOTOMETRIC_INTERPRETATION, VR::CS, PrimitiveValue::from("MONOCHROME2"));
+    put(
+        tags::PHOTOMETRIC_INTERPRETATION,
+        VR::CS,
+        PrimitiveValue::from("MONOCHROME2"),
+    );
     put(tags::ROWS, VR::US, PrimitiveValue::from(s.rows));
     put(tags::COLUMNS, VR::US, PrimitiveValue::from(s.cols));
     put(tags::PIXEL_SPACING, VR::DS, ds(&s.spacing));
     put(tags::BITS_ALLOCATED, VR::US, PrimitiveValue::from(16u16));
     put(tags::BITS_STORED, VR::US, PrimitiveValue::from(s.bits_stored));
     put(tags::HIGH_BIT, VR::US, PrimitiveValue::from(s.bits_stored - 1));
-    put(tags::PIXEL_REPRESENTATION, VR::US, PrimitiveValue::from(u16::from(s.signed)));
+    put(
+        tags::PIXEL_REPRESENTATION,
+        VR::US,
+        PrimitiveValue::from(u16::from(s.signed)),
+    );
     put(tags::RESCALE_INTERCEPT, VR::DS, ds(&[s.rescale[1]]));
     put(tags::RESCALE_SLOPE, VR::DS, ds(&[s.rescale[0]]));
     put(tags::PIXEL_DATA, VR::OW, PrimitiveValue::U16(s.pixels.clone().into()));
@@ -114,7 +138,12 @@ fn stored(k: i16) -> Vec<i16> {
 
 #[test]
 fn uncompressed_syntaxes_load_a_scrambled_series_sorted_and_rescaled() {
-    for syntax in [parse::EXPLICIT_VR_LE, parse::IMPLICIT_VR_LE, "1.2.840.10008.1.2.2", "1.2.840.10008.1.2.1.99"] {
+    for syntax in [
+        parse::EXPLICIT_VR_LE,
+        parse::IMPLICIT_VR_LE,
+        "1.2.840.10008.1.2.2",
+        "1.2.840.10008.1.2.1.99",
+    ] {
         let dir = ScratchDir::new("dicom-syntax");
         // Written out of order: z = 4, 0, 2 mm.
         let slices: Vec<SliceSpec> = [(2, 4.0), (0, 0.0), (1, 2.0)]
@@ -191,17 +220,30 @@ fn one_bit_frames_are_packed_across_frame_boundaries() {
     let mut put = |tag, vr, value: PrimitiveValue| {
         o.put(DataElement::new(tag, vr, value));
     };
-    put(tags::SOP_CLASS_UID, VR::UI, PrimitiveValue::from("1.2.840.10008.5.1.4.1.1.7.1"));
+    put(
+        tags::SOP_CLASS_UID,
+        VR::UI,
+        PrimitiveValue::from("1.2.840.10008.5.1.4.1.1.7.1"),
+    );
     put(tags::SERIES_INSTANCE_UID, VR::UI, PrimitiveValue::from("7.7"));
     put(tags::NUMBER_OF_FRAMES, VR::IS, PrimitiveValue::from("2"));
     put(tags::SAMPLES_PER_PIXEL, VR::US, PrimitiveValue::from(1u16));
-    put(tags::PHOTOMETRIC_INTERPRETATION, VR::CS, PrimitiveValue::from("MONOCHROME2"));
+    put(
+        tags::PHOTOMETRIC_INTERPRETATION,
+        VR::CS,
+        PrimitiveValue::from("MONOCHROME2"),
+    );
     put(tags::ROWS, VR::US, PrimitiveValue::from(3u16));
     put(tags::COLUMNS, VR::US, PrimitiveValue::from(3u16));
     put(tags::BITS_ALLOCATED, VR::US, PrimitiveValue::from(1u16));
     put(tags::BITS_STORED, VR::US, PrimitiveValue::from(1u16));
     put(tags::PIXEL_DATA, VR::OB, PrimitiveValue::U8(packed.into()));
-    write(o, parse::EXPLICIT_VR_LE, "1.2.840.10008.5.1.4.1.1.7.1", &dir.path("mask.dcm"));
+    write(
+        o,
+        parse::EXPLICIT_VR_LE,
+        "1.2.840.10008.5.1.4.1.1.7.1",
+        &dir.path("mask.dcm"),
+    );
     let l = open_dicom(&dir.path(""), None).unwrap();
     assert_eq!(l.volume.dims, [3, 3, 2]);
     assert_eq!(l.volume.data, bits.iter().map(|&b| f32::from(b)).collect::<Vec<_>>());
@@ -211,24 +253,39 @@ fn one_bit_frames_are_packed_across_frame_boundaries() {
 fn several_series_are_listed_and_chosen_by_number_uid_or_file() {
     let dir = ScratchDir::new("dicom-multi");
     let a: Vec<SliceSpec> = (0..3).map(|k| SliceSpec::new("1.1", k as f64, stored(k))).collect();
-    let b: Vec<SliceSpec> = (0..2).map(|k| SliceSpec::new("2.2", k as f64 * 5.0, stored(5 + k))).collect();
+    let b: Vec<SliceSpec> = (0..2)
+        .map(|k| SliceSpec::new("2.2", k as f64 * 5.0, stored(5 + k)))
+        .collect();
     let files_b = write_series(&dir.path(""), &b, parse::EXPLICIT_VR_LE);
     write_series(&dir.path(""), &a, parse::EXPLICIT_VR_LE);
     dir.write("notes.txt", b"not DICOM");
     let list = list_series(&dir.path("")).unwrap();
     assert_eq!(list.len(), 2);
     assert_eq!((list[0].uid.as_str(), list[0].frames), ("1.1", 3));
-    assert_eq!((list[1].uid.as_str(), list[1].frames, list[1].description.as_str()), ("2.2", 2, "series 2.2"));
+    assert_eq!(
+        (list[1].uid.as_str(), list[1].frames, list[1].description.as_str()),
+        ("2.2", 2, "series 2.2")
+    );
     let err = open_dicom(&dir.path(""), None).unwrap_err().to_string();
-    assert!(err.contains("several DICOM series") && err.contains("1.1") && err.contains("2.2"), "{err}");
+    assert!(
+        err.contains("several DICOM series") && err.contains("1.1") && err.contains("2.2"),
+        "{err}"
+    );
     assert_eq!(open_dicom(&dir.path(""), Some("2")).unwrap().volume.dims[2], 2);
     assert_eq!(open_dicom(&dir.path(""), Some("1.1")).unwrap().volume.dims[2], 3);
-    assert!(open_dicom(&dir.path(""), Some("3")).unwrap_err().to_string().contains("no series '3'"));
+    assert!(open_dicom(&dir.path(""), Some("3"))
+        .unwrap_err()
+        .to_string()
+        .contains("no series '3'"));
     // A file opens its own series; a broken file of another series does not stop it.
     dir.write("broken.dcm", b"DICM\x02\x00\x10\x00UI\xff\x7f");
     let l = open_dicom(&files_b[1], None).unwrap();
     assert_eq!(l.volume.dims[2], 2);
-    assert!(l.meta.notes.iter().any(|n| n.contains("unreadable")), "{:?}", l.meta.notes);
+    assert!(
+        l.meta.notes.iter().any(|n| n.contains("unreadable")),
+        "{:?}",
+        l.meta.notes
+    );
 }
 
 #[test]
@@ -275,13 +332,22 @@ fn objects_without_pixels_and_hostile_lengths_fail_clearly() {
     let dir = ScratchDir::new("dicom-bad");
     let mut sr = InMemDicomObject::new_empty();
     sr.put(DataElement::new(tags::SOP_CLASS_UID, VR::UI, PrimitiveValue::from(SR)));
-    sr.put(DataElement::new(tags::SERIES_INSTANCE_UID, VR::UI, PrimitiveValue::from("8.8")));
+    sr.put(DataElement::new(
+        tags::SERIES_INSTANCE_UID,
+        VR::UI,
+        PrimitiveValue::from("8.8"),
+    ));
     write(sr, parse::EXPLICIT_VR_LE, SR, &dir.path("report.dcm"));
     let err = open_dicom(&dir.path("report.dcm"), None).unwrap_err().to_string();
     assert!(err.contains("holds no image: Structured Report"), "{err}");
     // A data-set element claiming 4 GiB - 2 bytes: refused before anything is allocated.
     let good = dir.path("good.dcm");
-    write(image_object(&SliceSpec::new("6.6", 0.0, stored(0))), parse::EXPLICIT_VR_LE, CT, &good);
+    write(
+        image_object(&SliceSpec::new("6.6", 0.0, stored(0))),
+        parse::EXPLICIT_VR_LE,
+        CT,
+        &good,
+    );
     let mut bytes = std::fs::read(&good).unwrap();
     let at = bytes.windows(4).position(|w| w == [0x08, 0x00, 0x60, 0x00]).unwrap();
     bytes[at + 4..at + 6].copy_from_slice(b"OB");
@@ -289,6 +355,8 @@ fn objects_without_pixels_and_hostile_lengths_fail_clearly() {
     let hostile = dir.write("h/hostile.dcm", &bytes);
     let err = open_dicom(&hostile, None).unwrap_err().to_string();
     assert!(err.contains("claims 4294967294 bytes"), "{err}");
-    let err = open_dicom(&dir.write("t/truncated.dcm", &bytes[..200]), None).unwrap_err().to_string();
+    let err = open_dicom(&dir.write("t/truncated.dcm", &bytes[..200]), None)
+        .unwrap_err()
+        .to_string();
     assert!(err.starts_with("DICOM header of"), "{err}");
 }
