@@ -54,10 +54,14 @@ pub(crate) struct Scan {
 
 enum Entry {
     NotDicom,
-    Unreadable(String),
+    Unreadable(VolumeError),
     NonImage(String),
+    /// A DICOMDIR (Media Storage Directory), whatever its file name.
+    Directory,
     Image(Box<ImageInfo>),
 }
+
+const MEDIA_STORAGE_DIRECTORY: &str = "1.2.840.10008.1.3.10";
 
 /// What kind of object a SOP class is, for "this DICOM object holds no image: …".
 pub(crate) fn object_kind(sop_class: &str) -> String {
@@ -100,20 +104,23 @@ fn classify(path: &Path) -> Entry {
     match got {
         Ok(n) if looks_like_dicom(&head[..n]) => {}
         Ok(_) => return Entry::NotDicom,
-        Err(e) => return Entry::Unreadable(e.to_string()),
+        Err(e) => return Entry::Unreadable(io_error(path)(e)),
     }
     let parsed = match read_file(path, true) {
         Ok(p) => p,
-        Err(e) => return Entry::Unreadable(e.to_string()),
+        Err(e) => return Entry::Unreadable(e),
     };
     if !parsed.has_pixels {
         let sop = text(&parsed.object, tags::SOP_CLASS_UID)
             .unwrap_or_else(|| parsed.object.meta().media_storage_sop_class_uid().to_string());
+        if sop.trim_end_matches('\0') == MEDIA_STORAGE_DIRECTORY {
+            return Entry::Directory;
+        }
         return Entry::NonImage(object_kind(&sop));
     }
     match image_info(&parsed.object, path.to_path_buf()) {
         Ok(info) => Entry::Image(Box::new(info)),
-        Err(m) => Entry::Unreadable(header_error(path, m).to_string()),
+        Err(m) => Entry::Unreadable(header_error(path, m)),
     }
 }
 
@@ -129,15 +136,14 @@ pub(crate) fn scan(path: &Path) -> Result<Scan, VolumeError> {
             walk(path, 0, &mut files)?;
             files
         }
-    } else if is_dicomdir(path) {
-        dicomdir_files(path)?
     } else {
         match classify(path) {
+            Entry::Directory => return scan_files(dicomdir_files(path)?, None),
             Entry::Image(info) => preselected = Some(info.series_uid.clone()),
             Entry::NonImage(kind) => {
                 return Err(header_error(path, format!("this DICOM object holds no image: {kind}")))
             }
-            Entry::Unreadable(m) => return Err(header_error(path, m)),
+            Entry::Unreadable(e) => return Err(e),
             Entry::NotDicom => {
                 return Err(header_error(
                     path,
@@ -153,6 +159,11 @@ pub(crate) fn scan(path: &Path) -> Result<Scan, VolumeError> {
         walk(dir, MAX_DEPTH, &mut files)?;
         files
     };
+    scan_files(files, preselected)
+}
+
+/// Reads the headers of `files` and groups the images by series.
+fn scan_files(files: Vec<PathBuf>, preselected: Option<String>) -> Result<Scan, VolumeError> {
     let entries: Vec<(PathBuf, Entry)> = files
         .into_par_iter()
         .map(|p| {
@@ -170,8 +181,8 @@ pub(crate) fn scan(path: &Path) -> Result<Scan, VolumeError> {
     let mut groups: BTreeMap<String, Vec<ImageInfo>> = BTreeMap::new();
     for (path, entry) in entries {
         match entry {
-            Entry::NotDicom => scan.not_dicom += 1,
-            Entry::Unreadable(m) => scan.unreadable.push((path, m)),
+            Entry::NotDicom | Entry::Directory => scan.not_dicom += 1,
+            Entry::Unreadable(e) => scan.unreadable.push((path, e.to_string())),
             Entry::NonImage(kind) => scan.non_image.push((path, kind)),
             Entry::Image(info) => groups.entry(info.series_uid.clone()).or_default().push(*info),
         }
