@@ -9,6 +9,7 @@
 //! the panel on the CPU ([`raster`]) into a softbuffer surface.
 
 pub mod controls;
+pub mod orientation;
 pub mod panel;
 #[cfg(test)]
 mod panel_tests;
@@ -96,6 +97,12 @@ pub fn run(args: &ViewArgs) -> Result<()> {
     fit_to_device(&mut prepared, &ctx, allow_downsample)?;
     let histogram = panel::histogram(&prepared.volume.data, prepared.window());
     let mut state = panel::ViewState::new(prepared.scene.clone(), histogram, &presets_dir())?;
+    state.anatomy = prepared
+        .volume_info
+        .meta
+        .patient
+        .as_ref()
+        .map(|p| p.display_from_world());
     state.show_panel = !args.no_panel;
     state.screenshot_size = [args.size.0, args.size.1];
     let renderer = Renderer::new(ctx.clone())?;

@@ -8,9 +8,12 @@ use std::path::PathBuf;
 use egui::{Key, Modifiers, PointerButton, Rect, Sense, Ui};
 
 use super::controls;
+use super::orientation;
 use super::tf_model::{list_presets, Function, TfEditor};
 use super::widgets::{self, PointSelection};
-use crate::scene::{Camera, ClipPlane, Environment, Projection, Scene, Toggle, TransferSource, VolumeSource};
+use crate::scene::{
+    Camera, ClipPlane, Environment, Projection, Scene, Toggle, TransferSource, View, VolumeSource, MAX_PITCH_DEG,
+};
 
 /// What the status line shows about the frame on screen.
 #[derive(Clone, Debug, Default)]
@@ -56,6 +59,9 @@ pub struct ViewState {
     pub viewport: Rect,
     /// Rects of named widgets of the last frame (used by the headless tests to aim clicks).
     pub rects: HashMap<&'static str, Rect>,
+    /// Patient data: the volume's residual rotation (display from world). The orientation
+    /// marker shows only then; the named views use the identity otherwise.
+    pub anatomy: Option<glam::Mat3>,
 }
 
 /// Histogram bars: 64 bins of the volume's values over the window, log scale.
@@ -92,6 +98,7 @@ impl ViewState {
             series,
             viewport: Rect::NOTHING,
             rects: HashMap::new(),
+            anatomy: None,
         })
     }
 
@@ -129,6 +136,9 @@ impl ViewState {
         self.viewport = rect;
         let response = ui.allocate_rect(rect, Sense::click_and_drag());
         self.viewport_input(ui, &response);
+        if let Some(residual) = self.anatomy {
+            orientation::paint_marker(ui, rect, &self.scene.camera, residual);
+        }
         if self.show_help {
             self.help(ui);
         }
@@ -181,6 +191,11 @@ impl ViewState {
         if pressed(Key::Tab, none) {
             self.show_panel = !self.show_panel;
         }
+        for (view, key) in View::ALL.into_iter().zip(orientation::VIEW_KEYS) {
+            if pressed(key, none) {
+                self.set_view(view);
+            }
+        }
         if pressed(Key::R, none) {
             self.scene.camera = self.home_camera.clone();
         }
@@ -221,6 +236,13 @@ impl ViewState {
         if pressed(Key::Minus, none) {
             controls::zoom(&mut self.scene.camera, -1.0);
         }
+    }
+
+    /// Turns the camera to a named view (of the patient for patient data, of the volume's
+    /// axes otherwise).
+    pub fn set_view(&mut self, view: View) {
+        let residual = self.anatomy.unwrap_or(glam::Mat3::IDENTITY);
+        self.scene.camera.set_view(view, residual);
     }
 
     fn screenshot_action(&self) -> Action {
@@ -305,9 +327,13 @@ impl ViewState {
     }
 
     fn camera_ui(&mut self, ui: &mut Ui) {
+        if let Some(view) = orientation::view_buttons(ui) {
+            self.set_view(view);
+        }
         let c = &mut self.scene.camera;
         ui.add(egui::Slider::new(&mut c.yaw_deg, 0.0..=360.0).text("yaw °"));
-        ui.add(egui::Slider::new(&mut c.pitch_deg, -89.0..=89.0).text("pitch °"));
+        ui.add(egui::Slider::new(&mut c.pitch_deg, -MAX_PITCH_DEG..=MAX_PITCH_DEG).text("pitch °"));
+        ui.add(egui::Slider::new(&mut c.roll_deg, -180.0..=180.0).text("roll °"));
         ui.horizontal(|ui| {
             ui.selectable_value(&mut c.projection, Projection::Perspective, "perspective");
             ui.selectable_value(&mut c.projection, Projection::Orthographic, "orthographic");
@@ -530,6 +556,7 @@ pub const HELP: &[(&str, &str)] = &[
     ("wheel, + / -", "zoom"),
     ("arrows", "orbit by 5°"),
     ("R", "reset camera"),
+    ("1 … 6", "anterior, posterior, left, right, superior, inferior view"),
     ("Page Down / Page Up", "time series: next / previous frame"),
     ("Ctrl+Z / Ctrl+Y, Ctrl+Shift+Z", "undo / redo transfer-function edits"),
     ("Delete", "delete the selected control point"),

@@ -113,13 +113,14 @@ impl Camera {
         let f = forward.normalize_or(Vec3::Z);
         let pitch = (-f.y).clamp(-1.0, 1.0).asin();
         let yaw = if pitch.cos() > 1e-6 { (-f.x).atan2(f.z) } else { 0.0 };
-        self.yaw_deg = yaw.to_degrees().rem_euclid(360.0);
-        self.pitch_deg = pitch.to_degrees();
+        // `+ 0.0` turns −0 into 0, which the panel would show as "-0".
+        self.yaw_deg = yaw.to_degrees().rem_euclid(360.0) + 0.0;
+        self.pitch_deg = pitch.to_degrees() + 0.0;
         self.roll_deg = 0.0;
         let (right0, down0, f0) = self.basis();
         // The wanted right axis: in view space x right, y down, z forward, so right = f × down.
         let right = up.cross(f0).normalize_or(right0);
-        self.roll_deg = right.dot(down0).atan2(right.dot(right0)).to_degrees();
+        self.roll_deg = right.dot(down0).atan2(right.dot(right0)).to_degrees() + 0.0;
     }
 
     /// Turns the camera to a named view of patient data and centres it. `display_from_world`
