@@ -112,7 +112,23 @@ impl PatientFrame {
                 }
             })
             .0;
-        let flip = [0, 1, 2].map(|j| self.axes[order[j]].dot(DISPLAY_AXES[j]) < 0.0);
+        let dots = [0, 1, 2].map(|j| self.axes[order[j]].dot(DISPLAY_AXES[j]));
+        let mut flip = dots.map(|d| d < 0.0);
+        // The result must not be a mirror image of the patient: when the flipped axes would
+        // form a frame of the other handedness than the display axes (possible only for
+        // strongly oblique frames), also flip the least aligned axis.
+        let signed = |j: usize| {
+            if flip[j] {
+                -self.axes[order[j]]
+            } else {
+                self.axes[order[j]]
+            }
+        };
+        let display = DMat3::from_cols(DISPLAY_AXES[0], DISPLAY_AXES[1], DISPLAY_AXES[2]).determinant();
+        if DMat3::from_cols(signed(0), signed(1), signed(2)).determinant() * display < 0.0 {
+            let weakest = (0..3).fold(0, |w, j| if dots[j].abs() < dots[w].abs() { j } else { w });
+            flip[weakest] = !flip[weakest];
+        }
         (order, flip)
     }
 
@@ -124,11 +140,8 @@ impl PatientFrame {
         // Gram–Schmidt keeps x exact, then y in the x–y plane.
         let x = m.x_axis.normalize_or(DVec3::X);
         let y = (m.y_axis - x * x.dot(m.y_axis)).normalize_or(DVec3::Y);
-        let z = x.cross(y);
-        // The display frame is left-handed in LPS (L × S = A), so a frame reordered onto it
-        // has det = +1 after the flips; keep z pointing the way the data's z axis does.
-        let z = if z.dot(m.z_axis) < 0.0 { -z } else { z };
-        DMat3::from_cols(x, y, z).as_mat3()
+        // A rotation: the flips of the display permutation keep the handedness.
+        DMat3::from_cols(x, y, x.cross(y)).as_mat3()
     }
 
     /// Degrees between the voxel axes and the nearest body axes, whatever their order: 0 for
@@ -333,5 +346,26 @@ mod tests {
         let same = plain.clone().into_display();
         assert_eq!(same.volume.dims, plain.volume.dims);
         assert_eq!(same.volume.data, plain.volume.data);
+    }
+
+    #[test]
+    fn frames_of_either_handedness_are_shown_without_mirroring() {
+        // A left-handed and a right-handed axial frame, and strongly oblique ones: the frame
+        // after reordering always has the display axes' handedness.
+        let n = DVec3::new(1.0, 1.0, 1.0).normalize();
+        let reflection = |v: DVec3| v - 2.0 * n * n.dot(v);
+        for axes in [
+            [DVec3::X, DVec3::Y, DVec3::Z],
+            [DVec3::X, DVec3::Y, -DVec3::Z],
+            [DVec3::X, DVec3::Y, DVec3::Z].map(reflection),
+            [DVec3::X, DVec3::Y, -DVec3::Z].map(reflection),
+        ] {
+            let after = loaded([2, 3, 4], PatientFrame::new(axes, DVec3::ZERO, "t")).into_display();
+            let f = after.meta.patient.unwrap();
+            let m = DMat3::from_cols(f.axes[0], f.axes[1], f.axes[2]);
+            let d = DMat3::from_cols(DISPLAY_AXES[0], DISPLAY_AXES[1], DISPLAY_AXES[2]);
+            assert!(m.determinant() * d.determinant() > 0.0, "{axes:?}");
+            assert!((f64::from(f.display_from_world().determinant()) - 1.0).abs() < 1e-5);
+        }
     }
 }
