@@ -43,15 +43,27 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         };
         let sop_class = "1.2.840.10008.5.1.4.1.1.2";
         put(tags::SOP_CLASS_UID, VR::UI, PrimitiveValue::from(sop_class));
-        put(tags::SOP_INSTANCE_UID, VR::UI, PrimitiveValue::from(format!("2.25.1000{z}")));
+        put(
+            tags::SOP_INSTANCE_UID,
+            VR::UI,
+            PrimitiveValue::from(format!("2.25.1000{z}")),
+        );
         put(tags::MODALITY, VR::CS, PrimitiveValue::from("CT"));
         put(tags::SERIES_INSTANCE_UID, VR::UI, PrimitiveValue::from("2.25.2024"));
         put(tags::INSTANCE_NUMBER, VR::IS, PrimitiveValue::from((z + 1).to_string()));
         let position = [0.0, 0.0, z as f64 * f64::from(volume.spacing[2])];
         put(tags::IMAGE_POSITION_PATIENT, VR::DS, ds(&position));
-        put(tags::IMAGE_ORIENTATION_PATIENT, VR::DS, ds(&[1.0, 0.0, 0.0, 0.0, -1.0, 0.0]));
+        put(
+            tags::IMAGE_ORIENTATION_PATIENT,
+            VR::DS,
+            ds(&[1.0, 0.0, 0.0, 0.0, -1.0, 0.0]),
+        );
         put(tags::SAMPLES_PER_PIXEL, VR::US, PrimitiveValue::from(1u16));
-        put(tags::PHOTOMETRIC_INTERPRETATION, VR::CS, PrimitiveValue::from("MONOCHROME2"));
+        put(
+            tags::PHOTOMETRIC_INTERPRETATION,
+            VR::CS,
+            PrimitiveValue::from("MONOCHROME2"),
+        );
         put(tags::ROWS, VR::US, PrimitiveValue::from(ny as u16));
         put(tags::COLUMNS, VR::US, PrimitiveValue::from(nx as u16));
         let spacing = [f64::from(volume.spacing[1]), f64::from(volume.spacing[0])];

@@ -27,26 +27,49 @@ pub(crate) fn frame_values(obj: &Object, format: &PixelFormat, k: usize, path: &
         .ok_or_else(|| header_error(path, "no pixel data"))?;
     let pixel_count = format.rows * format.columns;
     if let Some(fragments) = pixels.value().fragments() {
-        if obj.meta().transfer_syntax().trim_end_matches('\0') == RLE_LOSSLESS && format.bits_allocated == 32 {
-            // dicom-rs's RLE decoder handles 8 and 16 bits; RT dose grids are often 32-bit.
+        if obj.meta().transfer_syntax().trim_end_matches('\0') == RLE_LOSSLESS {
+            // Decoded here: dicom-rs's RLE decoder handles only 8 and 16 bits (RT dose grids
+            // are often 32-bit) and panics on a segment shorter than the image.
             let fragment = fragments
                 .get(k)
                 .ok_or_else(|| header_error(path, format!("RLE pixel data has no fragment for frame {}", k + 1)))?;
-            let bytes = rle_frame(fragment, pixel_count, format.samples, 4)
+            let bytes_per_sample = usize::from(format.bits_allocated / 8);
+            if !matches!(bytes_per_sample, 1 | 2 | 4) || format.bits_allocated % 8 != 0 {
+                return Err(header_error(
+                    path,
+                    format!("RLE with BitsAllocated {}", format.bits_allocated),
+                ));
+            }
+            let bytes = rle_frame(fragment, pixel_count, format.samples, bytes_per_sample)
                 .map_err(|m| header_error(path, format!("RLE pixel data of frame {}: {m}", k + 1)))?;
-            return values(&bytes, format, 0, pixel_count, path);
+            let interleaved = PixelFormat {
+                planar: 0,
+                ..format.clone()
+            };
+            return values(&bytes, &interleaved, 0, pixel_count, path);
         }
         let frame = u32::try_from(k).map_err(|_| header_error(path, "frame index out of range"))?;
-        let decoded = obj.decode_pixel_data_frame(frame).map_err(|e| {
-            header_error(
-                path,
-                format!(
-                    "cannot decode {} pixel data: {}",
-                    syntax_name(obj.meta().transfer_syntax()),
-                    error_chain(&e)
-                ),
-            )
-        })?;
+        // A codec that panics on malformed data becomes an error naming the file.
+        let decoded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| obj.decode_pixel_data_frame(frame)))
+            .map_err(|_| {
+                header_error(
+                    path,
+                    format!(
+                        "the {} decoder failed on this pixel data",
+                        syntax_name(obj.meta().transfer_syntax())
+                    ),
+                )
+            })?
+            .map_err(|e| {
+                header_error(
+                    path,
+                    format!(
+                        "cannot decode {} pixel data: {}",
+                        syntax_name(obj.meta().transfer_syntax()),
+                        error_chain(&e)
+                    ),
+                )
+            })?;
         // The codecs hand back interleaved RGB for colour and little-endian samples.
         let decoded_format = PixelFormat {
             bits_allocated: decoded.bits_allocated(),
@@ -252,4 +275,49 @@ fn luminance(raw: &[f32], f: &PixelFormat, n: usize) -> Vec<f32> {
             }
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::rle_frame;
+
+    fn fragment(segments: &[&[u8]]) -> Vec<u8> {
+        let mut header = vec![0u32; 16];
+        header[0] = segments.len() as u32;
+        let mut at = 64u32;
+        for (i, s) in segments.iter().enumerate() {
+            header[1 + i] = at;
+            at += s.len() as u32;
+        }
+        let mut out: Vec<u8> = header.iter().flat_map(|w| w.to_le_bytes()).collect();
+        out.extend(segments.concat());
+        out
+    }
+
+    #[test]
+    fn rle_segments_decode_most_significant_byte_first() {
+        // Two pixels of 16 bits: 0x0102 and 0x0304. High bytes: literal run "1 3"; low
+        // bytes: "2", then "4" as a repeat run of one.
+        let f = fragment(&[&[1, 1, 3], &[0, 2, 0, 4]]);
+        assert_eq!(rle_frame(&f, 2, 1, 2).unwrap(), vec![2, 1, 4, 3]);
+        // Repeat runs: -3 repeats the next byte four times.
+        let f = fragment(&[&[(-3i8) as u8, 9]]);
+        assert_eq!(rle_frame(&f, 4, 1, 1).unwrap(), vec![9; 4]);
+    }
+
+    #[test]
+    fn malformed_rle_fails_without_panicking() {
+        // Short segment, literal past the end, wrong segment count, offsets past the end.
+        assert!(rle_frame(&fragment(&[&[0, 7]]), 3, 1, 1)
+            .unwrap_err()
+            .contains("decodes to 1 of 3"));
+        assert!(rle_frame(&fragment(&[&[5, 1]]), 3, 1, 1).is_err());
+        assert!(rle_frame(&fragment(&[&[0, 1]]), 1, 1, 2)
+            .unwrap_err()
+            .contains("segments"));
+        let mut f = fragment(&[&[0, 1]]);
+        f[4..8].copy_from_slice(&9999u32.to_le_bytes());
+        assert!(rle_frame(&f, 1, 1, 1).is_err());
+        assert!(rle_frame(&[1, 0], 1, 1, 1).is_err());
+    }
 }
