@@ -33,6 +33,11 @@ pub(crate) const EXPLICIT_VR_LE: &str = "1.2.840.10008.1.2.1";
 const EXPLICIT_VR_BE: &str = "1.2.840.10008.1.2.2";
 const DEFLATED: &str = "1.2.840.10008.1.2.1.99";
 
+/// VRs with a 32-bit length; an unknown VR is read as UN.
+const KNOWN_LONG: [&[u8; 2]; 13] = [
+    b"OB", b"OD", b"OF", b"OL", b"OV", b"OW", b"SQ", b"SV", b"UC", b"UN", b"UR", b"UT", b"UV",
+];
+
 /// Pixel Data, Float Pixel Data and Double Float Pixel Data.
 const PIXEL_TAGS: [(u16, u16); 3] = [(0x7FE0, 0x0010), (0x7FE0, 0x0008), (0x7FE0, 0x0009)];
 
@@ -292,10 +297,33 @@ impl<'a> Cursor<'a> {
             });
         }
         let vr = self.word::<2>()?;
-        let long = matches!(
+        // As dicom-rs reads it: these VRs have a 16-bit length; every other VR, unknown ones
+        // included (read as UN), has 2 reserved bytes and a 32-bit length.
+        let long = !matches!(
             &vr,
-            b"OB" | b"OD" | b"OF" | b"OL" | b"OV" | b"OW" | b"SQ" | b"SV" | b"UC" | b"UN" | b"UR" | b"UT" | b"UV"
+            b"AE"
+                | b"AS"
+                | b"AT"
+                | b"CS"
+                | b"DA"
+                | b"DS"
+                | b"DT"
+                | b"FL"
+                | b"FD"
+                | b"IS"
+                | b"LO"
+                | b"LT"
+                | b"PN"
+                | b"SH"
+                | b"SL"
+                | b"SS"
+                | b"ST"
+                | b"TM"
+                | b"UI"
+                | b"UL"
+                | b"US"
         );
+        let vr = if long && !KNOWN_LONG.contains(&&vr) { *b"UN" } else { vr };
         let len = if long {
             self.word::<2>()?;
             self.u32()?

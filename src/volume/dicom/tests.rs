@@ -359,4 +359,12 @@ fn objects_without_pixels_and_hostile_lengths_fail_clearly() {
         .unwrap_err()
         .to_string();
     assert!(err.starts_with("DICOM header of"), "{err}");
+    // An unknown VR has a 32-bit length for dicom-rs (it reads it as UN): found by fuzzing,
+    // where the walk took a 16-bit length and dicom-rs then allocated 273 MB.
+    bytes[at + 4..at + 6].copy_from_slice(b"ZZ");
+    bytes[at + 6..at + 12].copy_from_slice(&[0, 0, 0x43, 0x46, 0x4C, 0x10]);
+    let err = open_dicom(&dir.write("u/unknown-vr.dcm", &bytes), None)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("claims 273434179 bytes"), "{err}");
 }
