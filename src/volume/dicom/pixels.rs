@@ -48,6 +48,11 @@ pub(crate) fn frame_values(obj: &Object, format: &PixelFormat, k: usize, path: &
             };
             return values(&bytes, &interleaved, 0, pixel_count, path);
         }
+        if JPEG_2000.contains(&obj.meta().transfer_syntax().trim_end_matches('\0')) {
+            for fragment in fragments {
+                check_j2k_size(fragment, format).map_err(|m| header_error(path, m))?;
+            }
+        }
         let frame = u32::try_from(k).map_err(|_| header_error(path, "frame index out of range"))?;
         // A codec that panics on malformed data becomes an error naming the file.
         let decoded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| obj.decode_pixel_data_frame(frame)))
@@ -87,6 +92,47 @@ pub(crate) fn frame_values(obj: &Object, format: &PixelFormat, k: usize, path: &
 }
 
 const RLE_LOSSLESS: &str = "1.2.840.10008.1.2.5";
+
+/// JPEG 2000 and High-Throughput JPEG 2000 syntaxes.
+const JPEG_2000: [&str; 7] = [
+    "1.2.840.10008.1.2.4.90",
+    "1.2.840.10008.1.2.4.91",
+    "1.2.840.10008.1.2.4.92",
+    "1.2.840.10008.1.2.4.93",
+    "1.2.840.10008.1.2.4.201",
+    "1.2.840.10008.1.2.4.202",
+    "1.2.840.10008.1.2.4.203",
+];
+
+/// The image a JPEG 2000 codestream declares in its SIZ marker must fit the DICOM image:
+/// dicom-rs writes the decoded components into a buffer of Rows × Columns × samples without
+/// checking, and panics on a larger codestream (found by fuzzing).
+fn check_j2k_size(fragment: &[u8], f: &PixelFormat) -> Result<(), String> {
+    // SOC then SIZ; a JP2 wrapper puts the codestream a little later.
+    let head = &fragment[..fragment.len().min(4096)];
+    let Some(at) = head.windows(4).position(|w| w == [0xFF, 0x4F, 0xFF, 0x51]) else {
+        return Ok(());
+    };
+    let word = |o: usize| -> Option<u32> {
+        let b = fragment.get(at + 4 + o..at + 8 + o)?;
+        Some(u32::from_be_bytes([b[0], b[1], b[2], b[3]]))
+    };
+    let (Some(x), Some(y), Some(x0), Some(y0)) = (word(4), word(8), word(12), word(16)) else {
+        return Err("JPEG 2000 SIZ marker is truncated".into());
+    };
+    let components = fragment
+        .get(at + 40..at + 42)
+        .map(|b| usize::from(u16::from_be_bytes([b[0], b[1]])))
+        .ok_or("JPEG 2000 SIZ marker is truncated")?;
+    let (w, h) = (x.saturating_sub(x0) as usize, y.saturating_sub(y0) as usize);
+    if w * h > f.rows * f.columns || components > f.samples {
+        return Err(format!(
+            "the JPEG 2000 codestream holds {w}×{h} pixels of {components} components, but the image is {}×{} of {}",
+            f.columns, f.rows, f.samples
+        ));
+    }
+    Ok(())
+}
 
 /// Decodes one RLE Lossless frame (DICOM PS3.5 Annex G) into interleaved little-endian
 /// samples: a 64-byte header of segment offsets, then one PackBits segment per byte plane,
