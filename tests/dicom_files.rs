@@ -170,7 +170,7 @@ fn multi_frame_objects_place_their_frames() {
     let seg = load("liver.dcm");
     assert_eq!(seg.volume.dims[..2], [512, 512]);
     assert!(seg.volume.data.iter().all(|v| *v == 0.0 || *v == 1.0));
-    assert!(seg.volume.data.iter().any(|v| *v == 1.0));
+    assert!(seg.volume.data.contains(&1.0));
     assert!(seg.meta.patient.is_some());
     // Ultrasound cine: 120 colour frames without positions, stacked in order.
     let cine = load("color3d_jpeg_baseline.dcm");

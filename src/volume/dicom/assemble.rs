@@ -161,7 +161,7 @@ fn build(
     }
     let [row_dir, col_dir] = orientation.unwrap_or([DVec3::X, DVec3::Y]);
     let normal = row_dir.cross(col_dir);
-    if !(normal.length() > 0.5) {
+    if normal.length().is_nan() || normal.length() <= 0.5 {
         return Err(header_error(&first.path, "ImageOrientationPatient is degenerate"));
     }
     let normal = normal.normalize();

@@ -328,7 +328,7 @@ mod tests {
     use super::rle_frame;
 
     fn fragment(segments: &[&[u8]]) -> Vec<u8> {
-        let mut header = vec![0u32; 16];
+        let mut header = [0u32; 16];
         header[0] = segments.len() as u32;
         let mut at = 64u32;
         for (i, s) in segments.iter().enumerate() {
