@@ -59,7 +59,7 @@ pub fn arms(camera: &Camera, display_from_world: Mat3) -> Vec<Arm> {
 /// Draws the marker in the lower left corner of `viewport`.
 pub fn paint_marker(ui: &Ui, viewport: Rect, camera: &Camera, display_from_world: Mat3) {
     // Room for the letters outside the arms.
-    let margin = MARKER_RADIUS + 24.0;
+    let margin = MARKER_RADIUS + 34.0;
     let centre = Pos2::new(viewport.left() + margin, viewport.bottom() - margin);
     let painter = ui.painter_at(viewport);
     painter.circle_filled(centre, MARKER_RADIUS + 10.0, Color32::from_black_alpha(110));
