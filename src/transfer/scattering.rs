@@ -56,6 +56,74 @@ pub fn premoze_eq18(a: f64, b: f64, theta2: f64, s: f64) -> f64 {
     theta2 * tau * s * s / (24.0 * (1.0 + tau * tau * (a / b) * theta2 / 12.0))
 }
 
+/// Second moments of the light of a beam that scatters in a medium, advanced along the beam
+/// step by step with the local scattering b and anisotropy g: the per-plane spread a spread
+/// mode blurs by. Exact moment equations of the transport (no small-angle approximation),
+/// for light starting along the beam: with k₁ = b(1 − g) (the mean cosine's decay) and
+/// k₂ = b(1 − g²) (that of the second Legendre moment P₂, g² for Henyey–Greenstein),
+///
+///   dP₂/ds = −k₂ P₂,  dC/ds = (2/3)(1 − P₂) − k₁ C,  dR/ds = 2C,
+///
+/// where P₂ = E[P₂(cos θ)] to the beam, C = E[r⊥·d⊥] and R = E[|r⊥|²] (the light's spread
+/// about the beam, summed over both axes). In a homogeneous medium R(s) is the closed form
+/// the Monte Carlo reference checks against. s is the path length; absorption thins all
+/// paths of one length alike and leaves the moments alone.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SpreadMoments {
+    pub p2: f64,
+    pub cross: f64,
+    pub r2: f64,
+}
+
+impl Default for SpreadMoments {
+    /// A collimated beam: all light along it, no spread.
+    fn default() -> Self {
+        SpreadMoments {
+            p2: 1.0,
+            cross: 0.0,
+            r2: 0.0,
+        }
+    }
+}
+
+impl SpreadMoments {
+    /// Advances by path length `ds` through scattering `b` (per unit length) with
+    /// anisotropy `g`: P₂ exactly, C and R by classical Runge–Kutta in sub-steps of at most
+    /// a twentieth of the fastest relaxation length (relative error of R below 10⁻³; about
+    /// 10⁻⁴ in the tests).
+    pub fn step(&mut self, b: f64, g: f64, ds: f64) {
+        if b <= 0.0 || ds <= 0.0 {
+            self.r2 += 2.0 * self.cross * ds.max(0.0);
+            return;
+        }
+        let (k1, k2) = (b * (1.0 - g), b * (1.0 - g * g));
+        let n = ((k1.max(k2) * ds / 0.05).ceil() as usize).max(1);
+        let h = ds / n as f64;
+        let p2_at = |p0: f64, t: f64| p0 * (-k2 * t).exp();
+        for _ in 0..n {
+            let p0 = self.p2;
+            // y = (C, R); y' = ((2/3)(1 − P₂(t)) − k₁C, 2C).
+            let f = |t: f64, c: f64| (2.0 / 3.0) * (1.0 - p2_at(p0, t)) - k1 * c;
+            let c = self.cross;
+            let (kc1, kr1) = (f(0.0, c), 2.0 * c);
+            let c2 = c + 0.5 * h * kc1;
+            let (kc2, kr2) = (f(0.5 * h, c2), 2.0 * c2);
+            let c3 = c + 0.5 * h * kc2;
+            let (kc3, kr3) = (f(0.5 * h, c3), 2.0 * c3);
+            let c4 = c + h * kc3;
+            let (kc4, kr4) = (f(h, c4), 2.0 * c4);
+            self.cross = c + h / 6.0 * (kc1 + 2.0 * kc2 + 2.0 * kc3 + kc4);
+            self.r2 += h / 6.0 * (kr1 + 2.0 * kr2 + 2.0 * kr3 + kr4);
+            self.p2 = p2_at(p0, h);
+        }
+    }
+
+    /// Variance of the light's position per axis about the beam.
+    pub fn variance_per_axis(&self) -> f64 {
+        0.5 * self.r2
+    }
+}
+
 /// The GPU's scattering table: per data value (TABLE_SIZE entries over [0, 1], the same
 /// lattice as the pre-integration tables) the albedo ω, the anisotropy g, and two zeros.
 pub fn scattering_table(tf: &TransferFunctions) -> Vec<[f32; 4]> {
