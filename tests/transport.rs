@@ -104,14 +104,15 @@ fn ball_lens_light_matches_the_exact_trace_through_and_behind_the_focus() {
             sector_variation(&truth, 0.25 * r, 0.75 * r, 16),
         );
         let at = (z - lens.centre_z) / R;
-        // Measured on lavapipe, one beam per texel, Δs = 1: L1 0.12–0.18 (the paper's backward
+        // Measured on lavapipe, one beam per texel, Δs = 1: L1 0.09–0.18 (the paper's backward
         // scheme 0.5–1.9 at these planes), power inside R 0.94–1.04, total power within 2.1%,
         // the sector variation (16 sectors of the annulus R/4..3R/4) of the exact light
         // 0.13–0.24 from the voxelised sphere's facets, of the GPU's 0.13–0.43. The residual is
-        // the beams' sampling: one beam per texel deposited over a one-texel footprint, where
-        // beams converge fourfold and more. Bounds: L1 0.2; power inside R within 7%; total
-        // within 3% (a transport that loses or gains light behind a focus, as the paper's does
-        // by 1.4–9.8×, fails all three); past 1.5 R, where the light spreads again, no more
+        // sampling: the exact trace itself, run with one ray per texel edge as the beams are,
+        // is 0.11–0.22 from its converged result on these planes (`bench --light
+        // --convergence`). Bounds: L1 0.2; power inside R within 7%; total within 3% (a
+        // transport that loses or gains light behind a focus, as the paper's does by
+        // 1.4–9.8×, fails all three); past 1.5 R, where the light spreads again, no more
         // angular structure than the exact light's + 0.06 (a square star reads 0.3 and more).
         assert!(l1 < 0.2, "L1 {l1} at {at:.2} R");
         assert!((inside - 1.0).abs() < 0.07, "power inside R: {inside} at {at:.2} R");
@@ -175,7 +176,7 @@ fn ball_lens_on_axis_maximum_lies_where_the_exact_trace_has_it() {
         (zs[e] - lens.centre_z) / R,
         exact_axis[e]
     );
-    // Planes are Δs = 1 voxel = R/16 apart; the measured maxima are one plane apart.
+    // Planes are Δs = 1 voxel = R/16 apart; measured: the same plane (1.31 R).
     assert!(g.abs_diff(e) <= 1, "on-axis maximum {g} planes vs exact {e}");
     // Not at the edges of the searched range: the focus lies between R and 2 R.
     assert!(e > 0 && e + 1 < zs.len(), "exact maximum at the range's end");
@@ -246,7 +247,8 @@ fn cylinder_lens_focal_line_lies_where_the_exact_trace_has_it() {
         (zs[e].1 - lens.centre_z) / R,
         exact_line[e]
     );
-    // Within one voxel (one plane at Δs = 1) of the exact trace's focal line; measured: one.
+    // Within one voxel (one plane at Δs = 1) of the exact trace's focal line; measured: the
+    // same plane (1.31 R).
     assert!(
         (zs[g].1 - zs[e].1).abs() <= 1.0 + 1e-3,
         "focal line {} voxels from the exact one",
@@ -344,8 +346,8 @@ fn glass_to_the_volume_edge_refracts_light_and_view_rays_by_snells_law() {
         "light at {}°",
         light_angle.to_degrees()
     );
-    // View rays, from the rod's shift (2.16 voxels measured, 1.86 expected, 0 without
-    // refraction): within 2.5% of Snell's angle (measured 1.85%, 0.5°; the rod's visible faces
+    // View rays, from the rod's shift (2.11 voxels measured, 1.86 expected, 0 without
+    // refraction): within 2.5% of Snell's angle (measured 1.55%, 0.4°; the rod's visible faces
     // change with the angle, which moves the brightness centroid by a few hundredths of a
     // voxel, and the interface is crossed over about one plane).
     assert!(

@@ -163,7 +163,7 @@ fn light_convergence(args: &BenchArgs) -> Result<()> {
         }
         plan.size = size;
     }
-    let runs: &[(u32, f64)] = &[(2, 0.25), (4, 0.25), (8, 0.25), (8, 0.5), (8, 0.125)];
+    let runs: &[(u32, f64)] = &[(1, 0.25), (2, 0.25), (4, 0.25), (8, 0.25), (8, 0.5), (8, 0.125)];
     let truth = if args.quick { (16, 0.125) } else { (16, 0.0625) };
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))
