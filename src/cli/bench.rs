@@ -226,6 +226,7 @@ fn ct_head_scene(volume: &std::path::Path) -> Result<caustica::scene::Scene> {
         .map_err(input)?;
     scene.volume = VolumeSource::File {
         path: volume.to_path_buf(),
+        series: None,
     };
     Ok(scene)
 }
