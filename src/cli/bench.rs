@@ -38,7 +38,7 @@ pub struct BenchArgs {
     #[arg(long)]
     frames: Option<u32>,
     /// Voxels along the longest axis of the built-in volumes (default 64, or 40 with --quick;
-    /// with --speed each scene's own, 128).
+    /// with --speed the built-in default, 128).
     #[arg(long)]
     resolution: Option<usize>,
     /// Vulkan device: index or name substring (see `caustica devices`).
