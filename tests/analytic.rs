@@ -437,6 +437,8 @@ fn beer_slab() -> (Volume, TransferFunctions) {
         medium: ColorRamp {
             points: vec![[0.0, 1.0, 1.0, 1.0], [0.5, 1.0, 1.0, 1.0], [0.5, m[0], m[1], m[2]]],
         },
+        albedo: None,
+        anisotropy: None,
     };
     (vol, tf)
 }

@@ -10,6 +10,7 @@ pub mod light;
 pub mod metrics;
 pub mod plot;
 mod report;
+pub mod scatter;
 pub mod speed;
 mod speed_report;
 
