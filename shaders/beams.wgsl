@@ -290,17 +290,36 @@ fn beams_init(ij: vec2<u32>) {
     deposit_beam(0u, b, du, dv, hash(index ^ 0x5bd1e995u));
 }
 
-// Position of beam `index` (a neighbour) on plane z after the drift from its state on the
-// previous plane, or `fallback` if the index is outside the grid.
-fn neighbour_pos(ij: vec2<i32>, half: u32, z_prev: f32, z: f32) -> vec4<f32> {
+// What a beam needs of a neighbour (i, j) on the previous plane: its position drifted to
+// plane z (w: 1 inside the grid, 0 beyond: then the rest is unset), its power and its shadow
+// depth. Each of its buffers is read once, for the footprint and the soft light alike.
+struct Neighbour {
+    pos: vec4<f32>,
+    power: vec3<f32>,
+    shadow: f32,
+}
+
+fn load_neighbour(ij: vec2<i32>, half: u32, z_prev: f32, z: f32) -> Neighbour {
+    var o: Neighbour;
     if (ij.x < 0 || ij.y < 0 || ij.x >= i32(P.beam_grid.x) || ij.y >= i32(P.beam_grid.y)) {
-        return vec4<f32>(0.0);
+        o.pos = vec4<f32>(0.0);
+        return o;
     }
-    let n = beam_count();
-    let index = u32(ij.y) * P.beam_grid.x + u32(ij.x);
-    let a = beam_pos[half * n + index];
-    let vz = beam_aux[half * n + index].x;
-    return vec4<f32>(drift(vec3<f32>(a.xy, z_prev), vec3<f32>(a.zw, vz), z), 1.0);
+    let i = half * beam_count() + u32(ij.y) * P.beam_grid.x + u32(ij.x);
+    if (REFRACTION) {
+        let a = beam_pos[i];
+        let aux = beam_aux[i];
+        o.pos = vec4<f32>(drift(vec3<f32>(a.xy, z_prev), vec3<f32>(a.zw, aux.x), z), 1.0);
+        o.shadow = aux.z;
+    } else {
+        // Unrefracted beams keep their cells: only the light is read.
+        o.pos = vec4<f32>(0.0, 0.0, 0.0, 1.0);
+        o.shadow = beam_aux[i].z;
+    }
+    if (LIGHT_FILTER) {
+        o.power = load_beam_power(i).rgb;
+    }
+    return o;
 }
 
 // The cell's edge along one grid axis: the vector to the nearer of the beam's two
@@ -329,28 +348,28 @@ fn cell_axis(p: vec3<f32>, minus: vec4<f32>, plus: vec4<f32>) -> vec3<f32> {
 // `shadow` is blurred like the penumbra of a cone source of half-angle atan(softness): a
 // uniform disc of radius D·softness at distance D, whose variance per axis grows by
 // softness²·D·ℓ/2 over a segment of length ℓ, whatever the plane distance.
-fn diffuse(b: Beam, nb: array<Beam, 4>, spacing: vec4<f32>, z: f32, l: f32) -> vec4<f32> {
+fn diffuse(b: Beam, nb_power: array<vec3<f32>, 4>, nb_shadow: vec4<f32>, spacing: vec4<f32>, z: f32, l: f32) -> vec4<f32> {
     let soft = P.light_dir.w;
     var flux = vec3<f32>(0.0);
     var shadow_sum = 0.0;
     var deficit_sum = 0.0;
     let own_deficit = max(1.0 - max(b.power.r, max(b.power.g, b.power.b)), 0.0);
     for (var k = 0u; k < 4u; k++) {
-        let o = nb[k];
-        let od = max(1.0 - max(o.power.r, max(o.power.g, o.power.b)), 0.0);
+        let power = nb_power[k];
+        let od = max(1.0 - max(power.r, max(power.g, power.b)), 0.0);
         // The blur grows from where the light was lost: the shadow depth of whichever of the
         // two beams lost more.
         var depth = b.shadow;
         if (od > own_deficit) {
-            depth = o.shadow;
+            depth = nb_shadow[k];
         }
         let dist = max(z - depth, 0.0);
         let variance = soft * soft * dist * l * 0.5;
         let s2 = max(spacing[k] * spacing[k], 1e-12);
         // Explicit diffusion is stable for weights up to 1/4 per neighbour (four of them).
         let w = min(variance / (2.0 * s2), 0.25);
-        flux += w * (o.power - b.power);
-        shadow_sum += od * o.shadow;
+        flux += w * (power - b.power);
+        shadow_sum += od * nb_shadow[k];
         deficit_sum += od;
     }
     var shadow = b.shadow;
@@ -394,14 +413,16 @@ fn beams_step(ij: vec2<u32>, k: u32) {
     let gi = vec2<i32>(ij);
     var du: vec3<f32>;
     var dv: vec3<f32>;
-    var nb_pos: array<vec4<f32>, 4>;
+    var nb: array<Neighbour, 4>;
+    if (REFRACTION || LIGHT_FILTER) {
+        nb[0] = load_neighbour(gi - vec2<i32>(1, 0), read, z_prev, z);
+        nb[1] = load_neighbour(gi + vec2<i32>(1, 0), read, z_prev, z);
+        nb[2] = load_neighbour(gi - vec2<i32>(0, 1), read, z_prev, z);
+        nb[3] = load_neighbour(gi + vec2<i32>(0, 1), read, z_prev, z);
+    }
     if (REFRACTION) {
-        nb_pos[0] = neighbour_pos(gi - vec2<i32>(1, 0), read, z_prev, z);
-        nb_pos[1] = neighbour_pos(gi + vec2<i32>(1, 0), read, z_prev, z);
-        nb_pos[2] = neighbour_pos(gi - vec2<i32>(0, 1), read, z_prev, z);
-        nb_pos[3] = neighbour_pos(gi + vec2<i32>(0, 1), read, z_prev, z);
-        du = cell_axis(b.pos, nb_pos[0], nb_pos[1]);
-        dv = cell_axis(b.pos, nb_pos[2], nb_pos[3]);
+        du = cell_axis(b.pos, nb[0].pos, nb[1].pos);
+        dv = cell_axis(b.pos, nb[2].pos, nb[3].pos);
     } else {
         let s = P.beam_origin.z;
         let z0 = P.plane.x;
@@ -412,25 +433,27 @@ fn beams_step(ij: vec2<u32>, k: u32) {
     if (LIGHT_FILTER) {
         // The neighbours' power after their own attenuation is not known yet; their power on
         // the previous plane lags the exchange by one segment, which the variance per step
-        // (≪ the spacing²) makes negligible.
-        var nb: array<Beam, 4>;
+        // (≪ the spacing²) makes negligible. Beyond the grid a beam is its own neighbour (no
+        // exchange).
+        var nb_power: array<vec3<f32>, 4>;
+        var nb_shadow: vec4<f32>;
         var spacing: vec4<f32>;
-        let offsets = array<vec2<i32>, 4>(vec2<i32>(-1, 0), vec2<i32>(1, 0), vec2<i32>(0, -1), vec2<i32>(0, 1));
         for (var n = 0u; n < 4u; n++) {
-            let o = gi + offsets[n];
-            if (o.x < 0 || o.y < 0 || o.x >= i32(P.beam_grid.x) || o.y >= i32(P.beam_grid.y)) {
-                nb[n] = b;
+            if (nb[n].pos.w == 0.0) {
+                nb_power[n] = b.power;
+                nb_shadow[n] = b.shadow;
                 spacing[n] = 1.0;
                 continue;
             }
-            nb[n] = load_beam(u32(o.y) * P.beam_grid.x + u32(o.x), read, z_prev);
+            nb_power[n] = nb[n].power;
+            nb_shadow[n] = nb[n].shadow;
             if (n < 2u) {
                 spacing[n] = length(du);
             } else {
                 spacing[n] = length(dv);
             }
         }
-        let f = diffuse(b, nb, spacing, z, l);
+        let f = diffuse(b, nb_power, nb_shadow, spacing, z, l);
         b.power = max(b.power + f.xyz, vec3<f32>(0.0));
         b.shadow = f.w;
     }

@@ -178,3 +178,48 @@ fn tiny_light_bench_measures_the_planes_it_names() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn tiny_speed_bench_counts_the_memory_it_reports() {
+    // The speed table end to end at toy sizes: one scene at 8² (the fixed cost), 16² and 32².
+    use caustica::bench::speed::{self, SpeedPlan, SpeedScene};
+    let gpu = Gpu::new();
+    let plan = SpeedPlan {
+        scenes: vec![SpeedScene::builtin("ball-lens", Some(24)).expect("built-in scene")],
+        sizes: vec![16, 32],
+        tiny_size: 8,
+        frames: 1,
+    };
+    let dir = std::env::temp_dir().join(format!("caustica-speed-bench-test-{}", std::process::id()));
+    let report = speed::run(gpu.ctx.clone(), &plan, &dir, false).expect("speed bench runs");
+    gpu.assert_clean();
+    assert_eq!(
+        report.rows.iter().map(|r| (r.size, r.tiny)).collect::<Vec<_>>(),
+        [(8, true), (16, false), (32, false)]
+    );
+    for r in &report.rows {
+        assert!(r.planes > 0 && r.gpu_ms.median > 0.0, "{r:?}");
+        // The meter sees every allocation, so the peak holds at least the textures and the
+        // state buffers that were alive together during the frame.
+        assert!(
+            r.peak_memory.device_local >= r.texture_bytes + r.state_bytes && r.texture_bytes > 0,
+            "{r:?}"
+        );
+    }
+    // The light grid follows the viewport: four times the cells at twice the edge, within
+    // the one-cell rounding of each side.
+    let (a, b) = (&report.rows[1], &report.rows[2]);
+    let cells = |r: &speed::SpeedRow| (r.light_grid[0] * r.light_grid[1]) as f64;
+    assert!((3.0..5.0).contains(&(cells(b) / cells(a))), "{a:?} {b:?}");
+    let fit = &report.fits[0];
+    assert!(
+        fit.exponent.is_some_and(f64::is_finite) && fit.fixed_ms_per_plane.is_some(),
+        "{fit:?}"
+    );
+    let csv = std::fs::read_to_string(&report.csv).unwrap();
+    assert_eq!(csv.lines().count(), 4, "{csv}");
+    assert!(csv.starts_with("scene,features,viewport,tiny,planes"));
+    let fit_csv = std::fs::read_to_string(&report.fit_csv).unwrap();
+    assert_eq!(fit_csv.lines().count(), 2, "{fit_csv}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

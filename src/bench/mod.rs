@@ -2,7 +2,8 @@
 //! measures, for each setting, the GPU frame time and the error against the reference renderer
 //! (`reference`). Writes a Markdown table, a CSV file and a PNG plot of error against time
 //! with each scene's Pareto front. [`light`] measures the light buffer against the exact
-//! light on the same planes behind a ball lens.
+//! light on the same planes behind a ball lens; [`speed`] measures time, work and memory per
+//! frame over viewport sizes.
 
 pub mod convergence;
 pub mod light;
@@ -10,6 +11,8 @@ pub mod metrics;
 pub mod plot;
 mod report;
 pub mod scatter;
+pub mod speed;
+mod speed_report;
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};

@@ -1,4 +1,5 @@
-//! `caustica bench`: the speed–accuracy sweep, or the reference's convergence.
+//! `caustica bench`: the speed–accuracy sweep, the speed table, the light-transport table, or
+//! the reference's convergence.
 
 use std::path::PathBuf;
 
@@ -32,10 +33,12 @@ pub struct BenchArgs {
     /// Directory for bench.md, bench.csv, bench.png and the reference images.
     #[arg(long, default_value = "bench")]
     out: PathBuf,
-    /// GPU frames per setting (default 5, or 3 with --quick).
+    /// GPU frames per setting (default 5, or 3 with --quick; with --speed 5, or 3 with --quick,
+    /// and 1 on a CPU driver).
     #[arg(long)]
     frames: Option<u32>,
-    /// Voxels along the longest axis of the built-in volumes (default 64, or 40 with --quick).
+    /// Voxels along the longest axis of the built-in volumes (default 64, or 40 with --quick;
+    /// with --speed the built-in default, 128).
     #[arg(long)]
     resolution: Option<usize>,
     /// Vulkan device: index or name substring (see `caustica devices`).
@@ -52,6 +55,22 @@ pub struct BenchArgs {
     /// With --light: the image edge in texels (the frame spans 4 R; default 128, or 64 with --quick).
     #[arg(long)]
     size: Option<u32>,
+    /// Instead of the sweep, the speed table: GPU ms per frame and per plane, planes,
+    /// light-grid cells, footprint pixels and peak memory for each scene at 128², 256², 512²
+    /// and 1024² (128² and 256² with --quick; on a CPU driver up to 512², or 256² with --quick)
+    /// and 8² (the fixed cost per plane), with the
+    /// scaling fit; writes speed.md, speed.csv and speed-fit.csv. Scenes: the built-in ones at
+    /// their own resolution (or --resolution) and the CT head (`ct-head`) when it was fetched.
+    #[arg(long)]
+    speed: bool,
+    /// With --speed: viewport edges in pixels, comma separated (instead of the defaults).
+    #[arg(long, value_delimiter = ',')]
+    sizes: Vec<u32>,
+    /// With --speed: the CT head volume, rendered with the scene of datasets/ct-head.toml
+    /// (default: target/datasets/ct-head.nhdr or datasets/data/ct-head.nhdr, whichever
+    /// exists; `bash datasets/fetch target/datasets` fetches it).
+    #[arg(long)]
+    ct_head: Option<PathBuf>,
     /// Instead of the sweep, measure the reference renderer's convergence (error against a
     /// finer run of itself versus rays per voxel² and step length) on the first scene; with
     /// --light, the exact plane trace's (versus rays per texel and step); no GPU.
@@ -66,6 +85,9 @@ pub struct BenchArgs {
 
 pub fn bench(args: &BenchArgs) -> Result<()> {
     use caustica::bench::{self, Plan};
+    if args.speed {
+        return speed_bench(args);
+    }
     let scenes: Vec<String> = if args.scenes.is_empty() {
         BUILTIN_SCENES.iter().map(|s| s.to_string()).collect()
     } else {
@@ -197,6 +219,91 @@ fn light_bench(args: &BenchArgs, ctx: std::sync::Arc<Context>) -> Result<()> {
     let report = light::run(ctx.clone(), &plan, &args.out)?;
     print!("{}", read_report(&report.markdown).map_err(input)?);
     eprintln!("wrote {} and {}", report.markdown.display(), report.csv.display());
+    if ctx.validation_errors() > 0 {
+        return Err(BenchValidationFailed(ctx.validation_errors()).into());
+    }
+    Ok(())
+}
+
+/// The name of the CT head in `--scenes` and the speed table.
+const CT_HEAD: &str = "ct-head";
+/// Its scene file, relative to the project's root (where the bench runs).
+const CT_HEAD_SCENE: &str = "datasets/ct-head.toml";
+/// Where `datasets/fetch` puts the CT head: the folder the tests use, then the script's default.
+const CT_HEAD_VOLUMES: [&str; 2] = ["target/datasets/ct-head.nhdr", "datasets/data/ct-head.nhdr"];
+
+/// The CT head scene with its volume at `volume`.
+fn ct_head_scene(volume: &std::path::Path) -> Result<caustica::scene::Scene> {
+    use caustica::scene::{Scene, VolumeSource};
+    let mut scene = Scene::load(std::path::Path::new(CT_HEAD_SCENE))
+        .with_context(|| format!("the CT head's scene {CT_HEAD_SCENE} (run the bench from the project's root)"))
+        .map_err(input)?;
+    scene.volume = VolumeSource::File {
+        path: volume.to_path_buf(),
+        series: None,
+    };
+    Ok(scene)
+}
+
+fn speed_bench(args: &BenchArgs) -> Result<()> {
+    use caustica::bench::speed::{self, SpeedPlan, SpeedScene};
+    let asked_ct = args.scenes.iter().any(|s| s == CT_HEAD);
+    let ct_volume = match &args.ct_head {
+        Some(p) if !p.exists() => {
+            return Err(input(anyhow!("--ct-head {}: no such file", p.display())));
+        }
+        Some(p) => Some(p.clone()),
+        None => CT_HEAD_VOLUMES.iter().map(PathBuf::from).find(|p| p.exists()),
+    };
+    let mut scenes = Vec::new();
+    let names: Vec<String> = if args.scenes.is_empty() {
+        BUILTIN_SCENES.iter().map(|s| s.to_string()).collect()
+    } else {
+        args.scenes.iter().filter(|s| *s != CT_HEAD).cloned().collect()
+    };
+    for name in &names {
+        scenes.push(SpeedScene::builtin(name, args.resolution)?);
+    }
+    if args.scenes.is_empty() || asked_ct {
+        match &ct_volume {
+            Some(v) => scenes.push(SpeedScene {
+                name: CT_HEAD.into(),
+                scene: ct_head_scene(v)?,
+            }),
+            None if asked_ct => {
+                return Err(input(anyhow!(
+                "the CT head is not at {}: `bash datasets/fetch target/datasets` fetches it, or give --ct-head FILE",
+                CT_HEAD_VOLUMES.join(" or ")
+            )))
+            }
+            None => eprintln!(
+                "note: the CT head is not at {} and is left out (`bash datasets/fetch target/datasets` fetches it)",
+                CT_HEAD_VOLUMES.join(" or ")
+            ),
+        }
+    }
+    let ctx = Context::new(&ContextDesc::from_env(DeviceSelector::parse(&args.device)))?;
+    let mut plan = SpeedPlan::for_device(scenes, ctx.info.kind == "CPU", args.quick);
+    if let Some(f) = args.frames {
+        if f == 0 {
+            return Err(input(anyhow!("--frames must be at least 1")));
+        }
+        plan.frames = f;
+    }
+    if !args.sizes.is_empty() {
+        if args.sizes.contains(&0) {
+            return Err(input(anyhow!("--sizes must be at least 1 pixel each")));
+        }
+        plan.sizes = args.sizes.clone();
+    }
+    let report = speed::run(ctx.clone(), &plan, &args.out, true)?;
+    print!("{}", read_report(&report.markdown).map_err(input)?);
+    eprintln!(
+        "wrote {}, {} and {}",
+        report.markdown.display(),
+        report.csv.display(),
+        report.fit_csv.display()
+    );
     if ctx.validation_errors() > 0 {
         return Err(BenchValidationFailed(ctx.validation_errors()).into());
     }

@@ -105,7 +105,7 @@ pub fn render(args: &RenderArgs) -> Result<()> {
     let s = &out.stats;
     if args.timings {
         println!(
-            "device: {}\nfeatures: {}\nprecision: {}\nplanes: {} (integrated {})\nms per plane: {:.3}\ntotal GPU ms: {:.1}\nstate buffers: {:.1} MiB\nlight grid: {}×{} cells ({})\nvolume footprint: {}×{} pixels",
+            "device: {}\nfeatures: {}\nprecision: {}\nplanes: {} (integrated {})\nms per plane: {:.3}\ntotal GPU ms: {:.1}\nstate buffers: {:.1} MiB\nscene textures: {:.1} MiB\npeak memory: {:.1} MiB device-local, {:.1} MiB host-visible\nlight grid: {}×{} cells ({})\nvolume footprint: {}×{} pixels",
             ctx.info.name,
             s.features.describe(),
             s.precision.name(),
@@ -113,7 +113,10 @@ pub fn render(args: &RenderArgs) -> Result<()> {
             s.planes_run,
             s.ms_per_plane,
             s.gpu_ms,
-            s.state_bytes as f64 / (1024.0 * 1024.0),
+            mib(s.state_bytes),
+            mib(s.texture_bytes),
+            mib(s.peak_memory.device_local),
+            mib(s.peak_memory.host_visible),
             s.light_grid[0],
             s.light_grid[1],
             s.features.transport.name(),
@@ -123,4 +126,8 @@ pub fn render(args: &RenderArgs) -> Result<()> {
     }
     eprintln!("wrote {} ({}×{})", args.output.display(), args.size.0, args.size.1);
     Ok(())
+}
+
+fn mib(bytes: u64) -> f64 {
+    bytes as f64 / (1024.0 * 1024.0)
 }

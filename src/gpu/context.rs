@@ -15,6 +15,7 @@ use gpu_allocator::vulkan::{Allocator, AllocatorCreateDesc};
 use super::error::{vk_err, GpuError};
 use super::fault::{Faults, Injector};
 use super::instance::{DeviceInfo, Instance, PhysicalDevice};
+use super::meter::{MemoryMeter, MemoryUse};
 
 /// How long one submission may run before the device counts as hung. The renderer keeps each
 /// submission to a bounded amount of work (see `render::state`), seconds on a CPU driver.
@@ -178,6 +179,8 @@ impl Drop for CommandPool {
 pub(crate) struct MemoryAllocator {
     raw: Mutex<Option<Allocator>>,
     device: Arc<Device>,
+    /// Bytes allocated now and at the peak (`meter.rs`).
+    pub(crate) meter: MemoryMeter,
 }
 
 impl MemoryAllocator {
@@ -197,6 +200,7 @@ impl MemoryAllocator {
         Ok(MemoryAllocator {
             raw: Mutex::new(Some(allocator)),
             device: device.clone(),
+            meter: MemoryMeter::default(),
         })
     }
 
@@ -312,6 +316,23 @@ impl Context {
             ctx.provoke_validation_error();
         }
         Ok(Arc::new(ctx))
+    }
+
+    /// Bytes of every buffer and image allocated through this context now.
+    pub fn memory_in_use(&self) -> MemoryUse {
+        self.allocator.meter.in_use()
+    }
+
+    /// The most memory allocated at once since [`Context::reset_memory_peak`] (or since the
+    /// context was created): each class's own peak, and the peak of their sum. Everything
+    /// allocated through the context counts, by whichever thread.
+    pub fn memory_peak(&self) -> (MemoryUse, u64) {
+        self.allocator.meter.peak()
+    }
+
+    /// Starts a new peak at what is allocated now.
+    pub fn reset_memory_peak(&self) {
+        self.allocator.meter.reset_peak()
     }
 
     /// True once the device was lost (or hung): nothing more can run on it.

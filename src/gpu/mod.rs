@@ -21,6 +21,8 @@
 //!   submissions fail at once, and objects the hung work may use are leaked, not destroyed.
 //!   The driver's threads may still run that work, so a program should end with `_exit`
 //!   after a hang rather than run the C library's exit handlers (the CLI does).
+//! * Memory is metered: every allocation and free is counted by where it lives, so
+//!   [`Context::memory_peak`] is the most the program held at once, whatever allocated it.
 //! * Faults can be injected for tests ([`Faults`]): allocations failing with out of device
 //!   memory, a submission reporting a lost device.
 //! * Images live in `GENERAL` layout after creation, so one image can be sampled and written
@@ -35,6 +37,7 @@ mod context;
 mod error;
 mod fault;
 mod instance;
+mod meter;
 mod pipeline;
 mod resources;
 pub mod shader;
@@ -45,6 +48,7 @@ pub use context::{Context, ContextDesc, DeviceSelector, FENCE_TIMEOUT};
 pub use error::GpuError;
 pub use fault::Faults;
 pub use instance::{list_devices, DeviceInfo};
+pub use meter::MemoryUse;
 pub use pipeline::{ComputePipeline, DescriptorSet, Resource};
 pub use resources::{Buffer, Image, ImageDesc, Sampler, SamplerDesc};
 pub use shader::{Binding, BindingKind, CompiledShader, ShaderLayout, ShaderSource};

@@ -30,7 +30,7 @@ fn allocate(
             bytes: requirements.size,
         });
     }
-    allocator
+    let allocation = allocator
         .allocate(&AllocationCreateDesc {
             name: label,
             requirements,
@@ -47,7 +47,9 @@ fn allocate(
                 what: label.to_string(),
                 message: e.to_string(),
             },
-        })
+        })?;
+    ctx.allocator.meter.allocated(location, allocation.size());
+    Ok(allocation)
 }
 
 /// Maps a failed create call, naming the resource when the driver is out of memory (some
@@ -72,7 +74,8 @@ fn texel_bytes(format: vk::Format) -> u64 {
     }
 }
 
-fn free(ctx: &Context, allocation: Allocation) {
+fn free(ctx: &Context, allocation: Allocation, location: MemoryLocation) {
+    ctx.allocator.meter.freed(location, allocation.size());
     if let Ok(mut guard) = ctx.allocator.lock() {
         if let Some(a) = guard.as_mut() {
             let _ = a.free(allocation);
@@ -85,6 +88,7 @@ pub struct Buffer {
     ctx: Arc<Context>,
     pub(crate) raw: vk::Buffer,
     allocation: Option<Allocation>,
+    location: MemoryLocation,
     pub size: u64,
     pub usage: vk::BufferUsageFlags,
     pub label: String,
@@ -153,6 +157,7 @@ impl Buffer {
             ctx: ctx.clone(),
             raw: vk::Buffer::null(),
             allocation: None,
+            location,
             size,
             usage,
             label: label.to_string(),
@@ -170,6 +175,11 @@ impl Buffer {
             .map_err(vk_err("vkBindBufferMemory"))?;
         ctx.set_name(buffer.raw, label);
         Ok(buffer)
+    }
+
+    /// Bytes of memory the buffer holds (its allocation, at least `size`).
+    pub fn bytes(&self) -> u64 {
+        self.allocation.as_ref().map_or(0, Allocation::size)
     }
 
     /// Copies `bytes` to the start of a mapped buffer.
@@ -215,7 +225,7 @@ impl Drop for Buffer {
         // their submission completed (see the module contract).
         unsafe { self.ctx.device.destroy_buffer(self.raw, None) };
         if let Some(a) = self.allocation.take() {
-            free(&self.ctx, a);
+            free(&self.ctx, a, self.location);
         }
     }
 }
@@ -358,6 +368,12 @@ impl Image {
         }
     }
 
+    /// Bytes of device memory the image holds (its allocation: every mip level, the
+    /// driver's layout and alignment included).
+    pub fn bytes(&self) -> u64 {
+        self.allocation.as_ref().map_or(0, Allocation::size)
+    }
+
     pub fn width(&self) -> u32 {
         self.desc.extent[0]
     }
@@ -380,7 +396,7 @@ impl Drop for Image {
             self.ctx.device.destroy_image(self.raw, None);
         }
         if let Some(a) = self.allocation.take() {
-            free(&self.ctx, a);
+            free(&self.ctx, a, MemoryLocation::GpuOnly);
         }
     }
 }

@@ -27,7 +27,7 @@ use std::collections::HashMap;
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
-use crate::gpu::{ComputePipeline, Context, GpuError, ShaderSource};
+use crate::gpu::{ComputePipeline, Context, GpuError, MemoryUse, ShaderSource};
 use crate::scene::{Environment, Precision, SceneError};
 
 use shaders::Pass;
@@ -110,6 +110,13 @@ pub struct RenderStats {
     pub ms_per_plane: f64,
     /// Bytes of the state buffers (light, beams or light grid, view rays).
     pub state_bytes: u64,
+    /// Bytes of the scene textures (volume, gradient volume, tables, environment) and the
+    /// brick flags.
+    pub texture_bytes: u64,
+    /// The most memory allocated on the device at once during the render: scene textures,
+    /// state buffers, parameters, staging and read-back, by where it lives (each class's own
+    /// peak). Whatever else the program held at the time counts as well.
+    pub peak_memory: MemoryUse,
     /// Cells of the light grid (beams or backward lookups), width × height.
     pub light_grid: [u32; 2],
     /// Pixels whose rays can meet the volume, width × height.
@@ -197,6 +204,7 @@ impl Renderer {
         let mut sub = req.clone();
         let mut halvings = 0;
         let mut reductions = Vec::new();
+        self.ctx.reset_memory_peak();
         loop {
             let e = match self.render_once(prepared, &sub, precision) {
                 Ok(mut out) => {
@@ -204,6 +212,8 @@ impl Renderer {
                         out.image = out.image.resized(req.width, req.height);
                     }
                     out.stats.reductions = reductions;
+                    out.stats.texture_bytes = self.textures.as_ref().map_or(0, |t| t.textures.bytes());
+                    out.stats.peak_memory = self.ctx.memory_peak().0;
                     return Ok(out);
                 }
                 Err(RenderError::Gpu(e)) if e.is_out_of_memory() => e,

@@ -532,6 +532,8 @@ pub(super) fn run(
                     rect: [view.rect.width(), view.rect.height()],
                     precision,
                     reductions: Vec::new(),
+                    // Memory figures are filled in by `Renderer::render`.
+                    ..RenderStats::default()
                 },
             });
         }

@@ -231,6 +231,11 @@ impl SceneTextures {
         Ok((textures, pending))
     }
 
+    /// Bytes of device memory the textures and the brick flags hold.
+    pub fn bytes(&self) -> u64 {
+        self.images().iter().map(|i| i.bytes()).sum::<u64>() + self.bricks.bytes()
+    }
+
     /// The images in the order [`PendingUpload`] indexes them (the order of creation).
     fn images(&self) -> Vec<&Image> {
         vec![

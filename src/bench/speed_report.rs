@@ -1,0 +1,159 @@
+//! The speed bench's Markdown tables and CSV files.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use super::speed::{SpeedFit, SpeedRow};
+
+/// What the Markdown header says about the run.
+pub struct Context<'a> {
+    pub device: &'a str,
+    pub frames: u32,
+    pub sizes: &'a [u32],
+    pub tiny_size: u32,
+    pub load_before: Option<&'a str>,
+    pub load_after: Option<&'a str>,
+}
+
+fn mib(bytes: u64) -> f64 {
+    bytes as f64 / (1024.0 * 1024.0)
+}
+
+fn opt(v: Option<f64>, digits: usize) -> String {
+    v.filter(|v| v.is_finite())
+        .map_or_else(|| "–".to_string(), |v| format!("{v:.digits$}"))
+}
+
+fn sizes_text(sizes: &[u32]) -> String {
+    let lo = sizes.iter().min().copied().unwrap_or(0);
+    let hi = sizes.iter().max().copied().unwrap_or(0);
+    format!("{lo}²–{hi}²")
+}
+
+pub fn write_markdown(path: &Path, rows: &[SpeedRow], fits: &[SpeedFit], c: &Context) -> Result<(), String> {
+    let mut s = String::new();
+    let _ = write!(
+        s,
+        "Device: {}. GPU ms: median (min–max) of {} frames from timestamp queries, after one untimed \
+         frame per scene (texture upload, pipelines). Wall ms: median time of the whole render call \
+         (recording, submission, read-back). ms/plane: median GPU ms over planes. Footprint: pixels \
+         whose rays can meet the volume. Peak memory: the most allocated at once during a frame \
+         (device-local: textures and state buffers; host-visible: parameters, brick flags, read-back \
+         and, on a scene's first frame, staging).",
+        c.device, c.frames
+    );
+    if let (Some(a), Some(b)) = (c.load_before, c.load_after) {
+        let _ = write!(s, " Load average (1, 5, 15 min) before: {a}, after: {b}.");
+    }
+    s.push_str("\n\n");
+    s.push_str(
+        "| scene | features | viewport | planes | GPU ms per frame | wall ms | ms/plane | light grid | footprint px | state MiB | textures MiB | peak device MiB | peak host MiB |\n",
+    );
+    s.push_str("|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    for r in rows {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {}² | {} | {:.1} ({:.1}–{:.1}) | {:.1} | {:.3} | {}×{} | {}×{} | {:.1} | {:.1} | {:.1} | {:.1} |",
+            r.scene,
+            r.features,
+            r.size,
+            r.planes,
+            r.gpu_ms.median,
+            r.gpu_ms.min,
+            r.gpu_ms.max,
+            r.wall_ms.median,
+            r.ms_per_plane(),
+            r.light_grid[0],
+            r.light_grid[1],
+            r.footprint[0],
+            r.footprint[1],
+            mib(r.state_bytes),
+            mib(r.texture_bytes),
+            mib(r.peak_memory.device_local),
+            mib(r.peak_memory.host_visible),
+        );
+    }
+    let _ = write!(
+        s,
+        "\nScaling over {}: the exponent is the least-squares slope of log GPU ms against \
+         log (viewport pixels × planes), 1 for cost linear in the work. ",
+        sizes_text(c.sizes)
+    );
+    if c.tiny_size > 0 {
+        let _ = write!(
+            s,
+            "Fixed cost: ms per plane at {0}×{0}, where the pixels cost next to nothing. ",
+            c.tiny_size
+        );
+    }
+    s.push_str(
+        "Intercept and ns per pixel-plane: a straight line through ms per plane against viewport pixels, every size.\n\n",
+    );
+    s.push_str("| scene | exponent | fixed ms per plane | intercept ms per plane | ns per pixel-plane |\n");
+    s.push_str("|---|---|---|---|---|\n");
+    for f in fits {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {} | {} |",
+            f.scene,
+            opt(f.exponent, 2),
+            opt(f.fixed_ms_per_plane, 3),
+            opt(f.intercept_ms_per_plane, 3),
+            opt(f.ns_per_pixel_plane, 1),
+        );
+    }
+    std::fs::write(path, s).map_err(|e| e.to_string())
+}
+
+pub fn write_csv(path: &Path, rows: &[SpeedRow]) -> Result<(), String> {
+    let mut s = String::from(
+        "scene,features,viewport,tiny,planes,gpu_ms_median,gpu_ms_min,gpu_ms_max,wall_ms_median,ms_per_plane,\
+         light_grid_w,light_grid_h,footprint_w,footprint_h,state_bytes,texture_bytes,\
+         peak_device_local_bytes,peak_host_visible_bytes\n",
+    );
+    for r in rows {
+        let _ = writeln!(
+            s,
+            "{},{},{},{},{},{:.3},{:.3},{:.3},{:.3},{:.5},{},{},{},{},{},{},{},{}",
+            r.scene,
+            r.features,
+            r.size,
+            r.tiny,
+            r.planes,
+            r.gpu_ms.median,
+            r.gpu_ms.min,
+            r.gpu_ms.max,
+            r.wall_ms.median,
+            r.ms_per_plane(),
+            r.light_grid[0],
+            r.light_grid[1],
+            r.footprint[0],
+            r.footprint[1],
+            r.state_bytes,
+            r.texture_bytes,
+            r.peak_memory.device_local,
+            r.peak_memory.host_visible,
+        );
+    }
+    std::fs::write(path, s).map_err(|e| e.to_string())
+}
+
+pub fn write_fit_csv(path: &Path, fits: &[SpeedFit]) -> Result<(), String> {
+    let mut s = String::from("scene,exponent,fixed_ms_per_plane,intercept_ms_per_plane,ns_per_pixel_plane\n");
+    let field = |v: Option<f64>| {
+        v.filter(|v| v.is_finite())
+            .map_or_else(String::new, |v| format!("{v:.5}"))
+    };
+    for f in fits {
+        let _ = writeln!(
+            s,
+            "{},{},{},{},{}",
+            f.scene,
+            field(f.exponent),
+            field(f.fixed_ms_per_plane),
+            field(f.intercept_ms_per_plane),
+            field(f.ns_per_pixel_plane),
+        );
+    }
+    std::fs::write(path, s).map_err(|e| e.to_string())
+}
