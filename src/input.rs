@@ -6,7 +6,10 @@
 use std::path::{Path, PathBuf};
 
 use crate::gpu::Context;
-use crate::scene::{builtin, Precision, PrepareError, PreparedScene, Scene, SceneError, TransferSource, VolumeSource};
+use crate::scene::{
+    builtin, Camera, Precision, PrepareError, PreparedScene, Scene, SceneError, TransferSource, View, VolumeSource,
+    VIEW_NAMES,
+};
 use crate::transfer::{TransferError, TransferFunctions};
 use crate::volume::{Endian, RawDesc, ScalarType, VolumeError};
 
@@ -66,6 +69,14 @@ pub struct InputArgs {
     /// Time series: the frame to show (index, rounded to the nearest).
     #[arg(long)]
     pub time: Option<f32>,
+    /// DICOM: the series to load when the folder holds several (its number in
+    /// `caustica info DIR`, or its UID).
+    #[arg(long)]
+    pub series: Option<String>,
+    /// Look from one side of the patient: anterior, posterior, left, right, superior or
+    /// inferior (patient data opens in the anterior view with the head up).
+    #[arg(long, value_parser = parse_view)]
+    pub view: Option<View>,
     /// Fail instead of downsampling a volume that exceeds the device's 3D-texture limits.
     #[arg(long)]
     pub no_downsample: bool,
@@ -111,6 +122,10 @@ fn parse_spacing(s: &str) -> Result<[f32; 3], String> {
         .map(|p| p.trim().parse::<f32>().map_err(|e| format!("'{p}': {e}")))
         .collect::<Result<_, _>>()?;
     v.try_into().map_err(|_| "expected X,Y,Z, e.g. 0.5,0.5,2".to_string())
+}
+
+fn parse_view(s: &str) -> Result<View, String> {
+    View::parse(s).ok_or_else(|| format!("'{s}': expected one of {VIEW_NAMES}"))
 }
 
 fn parse_precision(s: &str) -> Result<Precision, String> {
@@ -164,6 +179,16 @@ impl InputArgs {
         if let Some(t) = self.time {
             notes.push(select_time(&mut scene, t)?);
         }
+        if let Some(wanted) = &self.series {
+            match &mut scene.volume {
+                VolumeSource::File { series, .. } => *series = Some(wanted.clone()),
+                _ => {
+                    return Err(InputError::Option(
+                        "--series needs a DICOM folder, file or DICOMDIR".into(),
+                    ))
+                }
+            }
+        }
         if let Some(d) = self.sample_distance {
             scene.quality.sample_distance = d;
         }
@@ -184,6 +209,19 @@ impl InputArgs {
         let mut notes = Vec::new();
         let scene = self.load_scene(&mut notes)?;
         let mut prepared = PreparedScene::load(&scene)?;
+        let patient = prepared.volume_info.meta.patient.clone();
+        let residual = patient
+            .as_ref()
+            .map_or(glam::Mat3::IDENTITY, |p| p.display_from_world());
+        let bare_file = self.scene.is_none() && !self.input.as_ref().is_some_and(|p| is_scene_file(p));
+        if let Some(view) = self.view {
+            prepared.scene.camera.set_view(view, residual);
+            notes.push(format!("view: {view}"));
+        } else if bare_file && patient.is_some() {
+            // Patient data: the anterior view with the head up, as in 3D Slicer.
+            prepared.scene.camera = Camera::named(View::Anterior, residual);
+            notes.push("view: anterior (patient data shown in anatomical orientation)".into());
+        }
         if self.wants_default_transfer() {
             prepared.use_default_transfer();
             let window = prepared.window();
@@ -223,6 +261,7 @@ impl InputArgs {
             },
             None => VolumeSource::File {
                 path: path.to_path_buf(),
+                series: None,
             },
         };
         Ok(Scene {

@@ -22,7 +22,7 @@ mod source;
 mod validate;
 pub mod view;
 pub use builtin::{builtin, BuiltinScene, BUILTIN_SCENES};
-pub use camera::{Camera, ClipPlane, Projection};
+pub use camera::{Camera, ClipPlane, Projection, View, MAX_PITCH_DEG, VIEW_NAMES};
 pub use environment::{srgb_to_linear, EnvError, EnvMap};
 pub use image::{linear_to_srgb, OutputError, RenderedImage};
 pub use lighting::{

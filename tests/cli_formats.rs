@@ -94,3 +94,43 @@ fn info_and_render_fail_clearly_on_bad_files() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// One broken file per format: each error names the file's own format, and no other.
+#[test]
+fn header_errors_name_the_format_of_the_file() {
+    let dir = scratch("names");
+    let dicom_dir = dir.join("series");
+    std::fs::create_dir_all(&dicom_dir).unwrap();
+    // A Part-10 preamble and marker followed by a meta group element whose length runs past
+    // the end of the file.
+    let mut dicom = vec![0u8; 128];
+    dicom.extend(b"DICM");
+    dicom.extend([0x02, 0x00, 0x10, 0x00, b'U', b'I', 0xFF, 0x7F]);
+    std::fs::write(dicom_dir.join("broken.dcm"), &dicom).unwrap();
+    let cases: [(&str, &[u8], &str); 6] = [
+        ("bad.nrrd", b"NRRD0004\ntype: flot\n\n", "NRRD"),
+        ("bad.nii", &[7u8; 400], "NIfTI"),
+        (
+            "bad.mha",
+            b"NDims = 3\nDimSize = 2 2\nElementDataFile = LOCAL\n",
+            "MetaImage",
+        ),
+        ("bad.vti", b"<VTKFile type=\"PolyData\"></VTKFile>", "VTK ImageData"),
+        ("series/broken.dcm", &dicom, "DICOM"),
+        ("bad.raw.json", b"{\"dims\": [2, 2]}", "raw sidecar"),
+    ];
+    std::fs::write(dir.join("bad.raw"), [0u8; 8]).unwrap();
+    let formats = ["NRRD", "NIfTI", "MetaImage", "VTK ImageData", "DICOM", "raw sidecar"];
+    for (name, bytes, format) in cases {
+        std::fs::write(dir.join(name), bytes).unwrap();
+        let input = name.strip_suffix(".json").unwrap_or(name);
+        let out = caustica(&dir, &["info", input]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{name}: {stderr}");
+        assert!(stderr.contains(&format!("{format} header of")), "{name}: {stderr}");
+        for other in formats.iter().filter(|f| **f != format) {
+            assert!(!stderr.contains(other), "{name} names {other}: {stderr}");
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

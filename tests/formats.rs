@@ -72,8 +72,14 @@ fn eta_volume_on_another_grid_is_resampled() {
     caustica::volume::nrrd::write_nrrd(&eta_path, &eta, false).unwrap();
     let tf = plain_tf(vec![[0.0, 0.0]], vec![[0.0, 1.0, 1.0, 1.0]]);
     let mut scene = head_on_scene(&tf);
-    scene.volume = VolumeSource::File { path: main_path };
-    scene.eta_volume = Some(VolumeSource::File { path: eta_path });
+    scene.volume = VolumeSource::File {
+        path: main_path,
+        series: None,
+    };
+    scene.eta_volume = Some(VolumeSource::File {
+        path: eta_path,
+        series: None,
+    });
     let p = PreparedScene::load(&scene).expect("a different grid is resampled, not refused");
     let resampled = p.eta_volume.as_ref().expect("eta volume");
     assert_eq!(resampled.dims, [32, 32, 32]);

@@ -9,7 +9,7 @@ use std::process::Command;
 use std::sync::Mutex;
 
 use caustica::render::{PreparedScene, RenderRequest};
-use caustica::scene::{Environment, Projection, Scene, TransferSource, VolumeSource};
+use caustica::scene::{Camera, Environment, Projection, Scene, TransferSource, View, VolumeSource};
 use caustica::transfer::{Curve, TransferFunctions};
 use caustica::volume::{self, Units, CT_WINDOW};
 
@@ -52,6 +52,13 @@ fn ct_head_has_its_dims_spacing_and_hounsfield_units() {
     );
     // Most of the box is air: the median lies near −1000 HU.
     assert!(loaded.histogram.quantile(0.5) < -900.0);
+    // An axial stack: columns to the patient's left, rows anterior, slices superior.
+    let frame = loaded
+        .meta
+        .patient
+        .as_ref()
+        .expect("patient frame from space directions");
+    assert_eq!(frame.axis_codes(), "LAS");
 }
 
 #[test]
@@ -59,23 +66,27 @@ fn mri_head_loads_from_nifti_gz() {
     let loaded = volume::open(&datasets().join("mri-head.nii.gz")).expect("MRI head loads");
     assert_eq!(loaded.volume.dims, [181, 217, 181]);
     assert_eq!(loaded.volume.spacing, [1.0; 3]);
+    // The Colin 27 template is stored RAS: x towards the patient's right, y anterior, z up.
+    let frame = loaded.meta.patient.as_ref().expect("patient frame from the sform");
+    assert_eq!((frame.source, frame.axis_codes().as_str()), ("NIfTI sform", "RAS"));
     let [lo, hi] = loaded.default_window();
     assert!(lo >= 0.0 && hi > lo && hi <= loaded.volume.value_range[1]);
 }
 
-/// Renders the CT head head-on (orthographic, along z) over a coloured background, downsampled
-/// to at most 64 voxels per axis to keep the test fast.
+/// Renders the CT head along its slice axis from below (orthographic inferior view: anterior
+/// at the top, the patient's left on the right) over a coloured background, downsampled to at
+/// most 64 voxels per axis to keep the test fast.
 fn render_ct(tf: TransferFunctions) -> (Vec<[f32; 4]>, [f32; 3], [usize; 3]) {
     let dir = datasets();
     let mut scene = Scene::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("datasets/ct-head.toml"))
         .expect("the CT head scene parses");
     scene.volume = VolumeSource::File {
         path: dir.join("ct-head.nhdr"),
+        series: None,
     };
     scene.transfer = TransferSource::Inline(tf);
     scene.clip = None;
-    scene.camera.yaw_deg = 0.0;
-    scene.camera.pitch_deg = 0.0;
+    scene.camera = Camera::named(View::Inferior, glam::Mat3::IDENTITY);
     scene.camera.projection = Projection::Orthographic;
     scene.camera.zoom = 1.0;
     let background = [0.2, 0.4, 0.6];

@@ -17,7 +17,7 @@ fn resolve(p: &mut PathBuf, base: &Path) {
 pub fn resolve_scene(scene: &mut Scene, base: &Path) -> Result<(), SceneError> {
     for v in std::iter::once(&mut scene.volume).chain(scene.eta_volume.as_mut()) {
         match v {
-            VolumeSource::File { path } => resolve(path, base),
+            VolumeSource::File { path, .. } => resolve(path, base),
             VolumeSource::Raw(desc) => resolve(&mut desc.path, base),
             VolumeSource::Series { files, pattern, .. } => {
                 files.iter_mut().for_each(|f| resolve(f, base));
@@ -69,9 +69,12 @@ mod tests {
             matches!(&scene.environment, Environment::Image { path, .. } if path == Path::new("/data/anim/sky.exr"))
         );
         let mut rel = crate::scene::builtin("ball-lens").unwrap().scene;
-        rel.volume = VolumeSource::File { path: "v.nrrd".into() };
+        rel.volume = VolumeSource::File {
+            path: "v.nrrd".into(),
+            series: None,
+        };
         resolve_scene(&mut rel, Path::new("")).unwrap();
-        let VolumeSource::File { path } = &rel.volume else {
+        let VolumeSource::File { path, .. } = &rel.volume else {
             panic!("still a file")
         };
         assert!(path.is_absolute() && path.ends_with("v.nrrd"), "{path:?}");

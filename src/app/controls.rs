@@ -30,12 +30,7 @@ fn radii_per_pixel(camera: &Camera, height_px: f32) -> f32 {
 
 /// Moves the target so the point under the cursor follows it (screen x right, y down).
 pub fn pan(camera: &mut Camera, dx_px: f32, dy_px: f32, height_px: f32) {
-    let yaw = camera.yaw_deg.to_radians();
-    let pitch = camera.pitch_deg.clamp(-89.0, 89.0).to_radians();
-    // Same frame as `scene::view::camera_position`.
-    let forward = -Vec3::new(yaw.sin() * pitch.cos(), pitch.sin(), -yaw.cos() * pitch.cos());
-    let right = Vec3::Y.cross(forward).normalize_or(Vec3::X);
-    let down = right.cross(forward);
+    let (right, down, _) = camera.basis();
     let s = radii_per_pixel(camera, height_px);
     let t = Vec3::from(camera.target) - (right * dx_px + down * dy_px) * s;
     camera.target = t.to_array();

@@ -10,6 +10,7 @@
 
 pub mod controls;
 pub mod keyframes;
+pub mod orientation;
 pub mod panel;
 #[cfg(test)]
 mod panel_tests;
@@ -142,6 +143,12 @@ pub fn run(args: &ViewArgs) -> Result<(), ViewError> {
     fit_to_device(&mut prepared, &ctx, allow_downsample)?;
     let histogram = panel::histogram(&prepared.volume.data, prepared.window());
     let mut state = panel::ViewState::new(prepared.scene.clone(), histogram, &presets_dir())?;
+    state.anatomy = prepared
+        .volume_info
+        .meta
+        .patient
+        .as_ref()
+        .map(|p| p.display_from_world());
     state.show_panel = !args.no_panel;
     state.screenshot_size = [args.size.0, args.size.1];
     let renderer = Renderer::new(ctx.clone())?;

@@ -10,9 +10,10 @@ use egui::{Key, Modifiers, PointerButton, Rect, Sense, Ui};
 mod sections;
 
 use super::controls;
+use super::orientation;
 use super::tf_model::{list_presets, TfEditor};
 use super::widgets::PointSelection;
-use crate::scene::{Camera, Scene, TransferSource, VolumeSource};
+use crate::scene::{Camera, Scene, TransferSource, View, VolumeSource};
 
 /// What the status line shows about the frame on screen.
 #[derive(Clone, Debug, Default)]
@@ -61,6 +62,9 @@ pub struct ViewState {
     pub rects: HashMap<&'static str, Rect>,
     /// Keyframes recorded for an animation file.
     pub recorder: super::keyframes::Recorder,
+    /// Patient data: the volume's residual rotation (display from world). The orientation
+    /// marker shows only then; the named views use the identity otherwise.
+    pub anatomy: Option<glam::Mat3>,
 }
 
 /// Histogram bars: 64 bins of the volume's values over the window, log scale.
@@ -98,6 +102,7 @@ impl ViewState {
             viewport: Rect::NOTHING,
             rects: HashMap::new(),
             recorder: Default::default(),
+            anatomy: None,
         })
     }
 
@@ -135,6 +140,9 @@ impl ViewState {
         self.viewport = rect;
         let response = ui.allocate_rect(rect, Sense::click_and_drag());
         self.viewport_input(ui, &response);
+        if let Some(residual) = self.anatomy {
+            orientation::paint_marker(ui, rect, &self.scene.camera, residual);
+        }
         if self.show_help {
             self.help(ui);
         }
@@ -187,6 +195,11 @@ impl ViewState {
         if pressed(Key::Tab, none) {
             self.show_panel = !self.show_panel;
         }
+        for (view, key) in View::ALL.into_iter().zip(orientation::VIEW_KEYS) {
+            if pressed(key, none) {
+                self.set_view(view);
+            }
+        }
         if pressed(Key::R, none) {
             self.scene.camera = self.home_camera.clone();
         }
@@ -232,6 +245,13 @@ impl ViewState {
         }
     }
 
+    /// Turns the camera to a named view (of the patient for patient data, of the volume's
+    /// axes otherwise).
+    pub fn set_view(&mut self, view: View) {
+        let residual = self.anatomy.unwrap_or(glam::Mat3::IDENTITY);
+        self.scene.camera.set_view(view, residual);
+    }
+
     fn screenshot_action(&self) -> Action {
         Action::Screenshot {
             path: self.screenshot_path.clone().into(),
@@ -265,6 +285,7 @@ pub const HELP: &[(&str, &str)] = &[
     ("wheel, + / -", "zoom"),
     ("arrows", "orbit by 5°"),
     ("R", "reset camera"),
+    ("1 … 6", "anterior, posterior, left, right, superior, inferior view"),
     ("Page Down / Page Up", "time series: next / previous frame"),
     ("Ctrl+Z / Ctrl+Y, Ctrl+Shift+Z", "undo / redo transfer-function edits"),
     ("Delete", "delete the selected control point"),

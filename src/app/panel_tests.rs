@@ -155,7 +155,8 @@ fn clicking_the_opacity_curve_adds_a_point_and_undo_removes_it() {
 
 #[test]
 fn colour_ramp_click_inserts_without_changing_the_gradient() {
-    let mut h = Harness::new();
+    // Tall enough that the medium ramp, low in the panel, is on screen.
+    let mut h = Harness::with_screen(Vec2::new(1024.0, 1000.0));
     let r = h.rect("medium colour");
     let n = h.state.tf.len(Function::Medium);
     let before = h.state.tf.eval(Function::Medium, 0.62);
@@ -320,4 +321,33 @@ fn keyframes_recorded_with_k_save_an_animation_through_the_views() {
     assert_eq!(specs[0].scene, first);
     assert_eq!(specs[3].scene, second);
     assert_ne!(specs[1].scene.camera, first.camera);
+}
+
+#[test]
+fn number_keys_turn_to_the_named_views_and_patient_data_gets_the_marker() {
+    use crate::scene::{Camera, View};
+    let mut h = Harness::new();
+    h.state.show_panel = false;
+    // Without a patient frame the views follow the volume's axes and no marker is drawn.
+    h.key(Key::Num3, Modifiers::NONE);
+    assert_eq!(
+        h.state.scene.camera.yaw_deg,
+        Camera::named(View::Left, glam::Mat3::IDENTITY).yaw_deg
+    );
+    let count_shapes = |h: &mut Harness| {
+        let input = RawInput {
+            screen_rect: Some(Rect::from_min_size(Pos2::ZERO, h.screen)),
+            ..Default::default()
+        };
+        let state = &mut h.state;
+        h.ctx.run_ui(input, |ui| drop(state.ui(ui))).shapes.len()
+    };
+    let plain = count_shapes(&mut h);
+    // Patient data, oblique by a small rotation: key 5 looks from above along the body axis.
+    let residual = glam::Mat3::from_rotation_y(0.2);
+    h.state.anatomy = Some(residual);
+    h.key(Key::Num5, Modifiers::NONE);
+    let (_, _, forward) = h.state.scene.camera.basis();
+    assert!((residual * forward - glam::Vec3::NEG_Y).length() < 1e-5, "{forward}");
+    assert!(count_shapes(&mut h) > plain, "the orientation marker paints");
 }

@@ -50,7 +50,7 @@ fn absolutise(scene: &mut Scene) {
     };
     for v in std::iter::once(&mut scene.volume).chain(scene.eta_volume.as_mut()) {
         match v {
-            VolumeSource::File { path } => abs(path),
+            VolumeSource::File { path, .. } => abs(path),
             VolumeSource::Raw(desc) => abs(&mut desc.path),
             VolumeSource::Series { files, pattern, .. } => {
                 files.iter_mut().for_each(abs);

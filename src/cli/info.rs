@@ -1,4 +1,5 @@
-//! `caustica info`: what a volume file holds (dims, type, spacing, range, histogram, window).
+//! `caustica info`: what a volume file holds (dims, type, spacing, orientation, range,
+//! histogram, window), or the series of a DICOM folder.
 
 use std::path::PathBuf;
 
@@ -8,8 +9,11 @@ use crate::Result;
 
 #[derive(clap::Args)]
 pub struct InfoArgs {
-    /// A volume file, a directory of DICOM files, or a time-series pattern with '*'.
+    /// A volume file, a DICOM folder, file or DICOMDIR, or a time-series pattern with '*'.
     input: PathBuf,
+    /// DICOM: describe this series of several (its number in the listing, or its UID).
+    #[arg(long)]
+    series: Option<String>,
     /// Rows of the histogram sketch.
     #[arg(long, default_value_t = 16)]
     histogram_rows: usize,
@@ -27,7 +31,16 @@ pub fn info(args: &InfoArgs) -> Result<()> {
         );
         series.open_frame(0)?
     } else {
-        volume::open(&args.input)?
+        match volume::open_series(&args.input, args.series.as_deref()) {
+            Err(volume::VolumeError::SeveralSeries { path, listing }) => {
+                let series = volume::dicom::list_series(&path)?;
+                println!("{}: {} DICOM series", path.display(), series.len());
+                print!("{listing}");
+                println!("describe one with --series N or --series UID (render and view take the same option)");
+                return Ok(());
+            }
+            other => other?,
+        }
     };
     let load_ms = started.elapsed().as_secs_f64() * 1e3;
     let v = &loaded.volume;
@@ -48,6 +61,22 @@ pub fn info(args: &InfoArgs) -> Result<()> {
     let e = v.extent();
     println!("extent:      {} × {} × {}", e[0], e[1], e[2]);
     println!("modality:    {}", m.modality.as_deref().unwrap_or("unknown"));
+    match &m.patient {
+        Some(p) => println!(
+            "orientation: {} (x, y, z run {}; {}), origin ({:.1}, {:.1}, {:.1}) mm LPS{}",
+            p.axis_codes(),
+            p.axis_words(),
+            p.source,
+            p.origin.x,
+            p.origin.y,
+            p.origin.z,
+            match p.obliquity_deg() {
+                d if d > 0.5 => format!(", {d:.1}° oblique"),
+                _ => String::new(),
+            }
+        ),
+        None => println!("orientation: not in the file (axes shown as stored)"),
+    }
     println!("units:       {}", m.units);
     println!("value range: [{}, {}]", v.value_range[0], v.value_range[1]);
     println!(

@@ -20,8 +20,13 @@ pub enum VolumeSource {
         resolution: usize,
     },
     /// A file whose format is known from its extension (see README, "Volume formats"), or a
-    /// directory holding a DICOM series.
-    File { path: PathBuf },
+    /// directory holding a DICOM series; `series` picks one of several DICOM series (its
+    /// number in `caustica info DIR`, or its UID).
+    File {
+        path: PathBuf,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        series: Option<String>,
+    },
     /// Raw samples: dims, scalar type, endianness and spacing given here.
     Raw(RawDesc),
     /// A time series: `files` in order, or the files matching `pattern` (one `*` in the file
@@ -45,14 +50,20 @@ impl VolumeSource {
         self.open().map(|loaded| loaded.volume)
     }
 
-    /// Loads the volume with its metadata and histogram.
+    /// Loads the volume with its metadata and histogram; patient data is reoriented to the
+    /// display axes ([`Loaded::into_display`]).
     pub fn open(&self) -> Result<Loaded, VolumeError> {
+        self.open_stored().map(Loaded::into_display)
+    }
+
+    /// The volume as stored in its file.
+    fn open_stored(&self) -> Result<Loaded, VolumeError> {
         match self {
             VolumeSource::Builtin { name, resolution } => Ok(Loaded::new(
                 volume::procedural::generate(name, *resolution)?,
                 VolumeMeta::new(Format::Procedural, None),
             )),
-            VolumeSource::File { path } => volume::open(path),
+            VolumeSource::File { path, series } => volume::open_series(path, series.as_deref()),
             VolumeSource::Raw(desc) => Ok(Loaded::new(
                 volume::raw::load_raw(desc)?,
                 VolumeMeta::new(Format::Raw, Some(desc.scalar)),
@@ -87,7 +98,7 @@ impl VolumeSource {
 
     pub(super) fn resolve_paths(&mut self, base: &Path) {
         match self {
-            VolumeSource::File { path } => *path = base.join(&*path),
+            VolumeSource::File { path, .. } => *path = base.join(&*path),
             VolumeSource::Raw(desc) => desc.path = base.join(&desc.path),
             VolumeSource::Series { files, pattern, .. } => {
                 for f in files.iter_mut() {

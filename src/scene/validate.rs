@@ -74,7 +74,10 @@ impl Scene {
             && (1.0..=170.0).contains(&c.fov_deg)
             && c.zoom.is_finite()
             && c.zoom > 0.0
-            && [c.yaw_deg, c.pitch_deg].iter().chain(&c.target).all(|v| v.is_finite());
+            && [c.yaw_deg, c.pitch_deg, c.roll_deg]
+                .iter()
+                .chain(&c.target)
+                .all(|v| v.is_finite());
         if !camera_ok {
             return bad(
                 "camera: distance and zoom must be finite and > 0, fov_deg in [1, 170], angles and target finite"

@@ -21,10 +21,6 @@ pub const NEAR_PLANE: f32 = 1e-3;
 /// More planes than this means a sample distance far below a voxel on a huge volume.
 pub const MAX_PLANES: u32 = 1 << 15;
 
-/// Camera pitch is held within ±this many degrees: at ±90° the view direction is parallel to
-/// the world's up axis and the camera's right axis (up × forward) would be the zero vector.
-pub const MAX_PITCH_DEG: f32 = 89.0;
-
 /// The sweep starts this many voxels (smallest spacing) in front of the volume's box and ends
 /// as far behind it: trilinear sampling reaches half a voxel beyond the box, and the first
 /// segment must see the whole index step at the volume's face (Snell's law at the boundary).
@@ -97,11 +93,9 @@ pub struct ViewSetup {
 }
 
 pub fn camera_position(camera: &Camera, radius: f32) -> (Vec3, Vec3) {
-    let yaw = camera.yaw_deg.to_radians();
-    let pitch = camera.pitch_deg.clamp(-MAX_PITCH_DEG, MAX_PITCH_DEG).to_radians();
     let target = Vec3::from(camera.target) * radius;
-    let offset = Vec3::new(yaw.sin() * pitch.cos(), pitch.sin(), -yaw.cos() * pitch.cos());
-    (target + offset * camera.distance * radius, target)
+    let (_, _, forward) = camera.basis();
+    (target - forward * camera.distance * radius, target)
 }
 
 impl ViewSetup {
@@ -112,10 +106,8 @@ impl ViewSetup {
             dims[2] as f32 * spacing[2],
         );
         let radius = extent.length() * 0.5;
-        let (eye, target) = camera_position(&scene.camera, radius);
-        let forward = (target - eye).normalize_or(Vec3::Z);
-        let right = Vec3::Y.cross(forward).normalize_or(Vec3::X);
-        let down = right.cross(forward);
+        let (eye, _) = camera_position(&scene.camera, radius);
+        let (right, down, forward) = scene.camera.basis();
         let rotation = Mat3::from_cols(right, down, forward); // world_from_view rotation
         let world_from_view = Mat4::from_translation(eye) * Mat4::from_mat3(rotation);
         let view_from_world = world_from_view.inverse();

@@ -4,6 +4,7 @@
 use std::fmt;
 
 use super::histogram::Histogram;
+use super::orient::PatientFrame;
 use super::{ScalarType, Volume};
 
 /// The window of the CT transfer-function presets (`transfer_functions/ct-*.json`), in
@@ -65,6 +66,8 @@ pub struct VolumeMeta {
     pub modality: Option<String>,
     /// Things worth telling a user about the load (ignored fields, corrections applied).
     pub notes: Vec<String>,
+    /// Where the voxels lie in the patient, when the file says (see [`super::orient`]).
+    pub patient: Option<PatientFrame>,
 }
 
 impl VolumeMeta {
@@ -75,6 +78,7 @@ impl VolumeMeta {
             units: Units::Unknown,
             modality: None,
             notes: Vec::new(),
+            patient: None,
         }
     }
 

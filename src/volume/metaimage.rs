@@ -1,5 +1,8 @@
 //! MetaImage volumes (ITK): `.mha` with attached data, `.mhd` with a separate data file;
-//! raw or zlib-compressed (`CompressedData = True`).
+//! raw or zlib-compressed (`CompressedData = True`). ITK's physical space is LPS: the
+//! `TransformMatrix` (the direction of each axis in turn) and `Offset` give the patient frame;
+//! without a matrix, `AnatomicalOrientation` does (ITK's codes name where each axis starts:
+//! "RAI" runs right to left, anterior to posterior, inferior to superior).
 
 use std::fs::File;
 use std::io::{BufRead, BufReader, Read, Seek, SeekFrom};
@@ -7,7 +10,10 @@ use std::path::{Path, PathBuf};
 
 use flate2::read::ZlibDecoder;
 
+use glam::DVec3;
+
 use super::meta::{Format, Loaded, VolumeMeta};
+use super::orient::PatientFrame;
 use super::read::{io_error, samples_from_file, samples_from_stream, Layout};
 use super::{Endian, ScalarType, Volume, VolumeError};
 
@@ -23,6 +29,7 @@ struct Header {
     /// Bytes to skip in the data file; `None` for "-1" (data at the end of the file).
     header_size: Option<u64>,
     modality: Option<String>,
+    patient: Option<PatientFrame>,
 }
 
 /// Loads a `.mha` or `.mhd` file.
@@ -35,6 +42,7 @@ pub fn load_metaimage(path: &Path) -> Result<Loaded, VolumeError> {
     if let Some(m) = &header.modality {
         meta = meta.with_modality(m);
     }
+    meta.patient = header.patient.clone();
     let data = match (&header.data_file, header.compressed) {
         (None, false) => {
             let offset = reader.stream_position().map_err(io_error(path))?;
@@ -82,6 +90,9 @@ fn read_header<R: BufRead>(reader: &mut R, path: &Path) -> Result<Header, Volume
     let mut channels = 1usize;
     let mut header_size = Some(0u64);
     let mut modality = None;
+    let mut matrix: Option<Vec<f64>> = None;
+    let mut offset: Option<Vec<f64>> = None;
+    let mut anatomical: Option<String> = None;
     let mut data_file: Option<Option<PathBuf>> = None;
     let mut consumed = 0u64;
     let mut line_no = 0;
@@ -147,6 +158,11 @@ fn read_header<R: BufRead>(reader: &mut R, path: &Path) -> Result<Header, Volume
                 }
             }
             "modality" => modality = Some(value.to_string()),
+            "transformmatrix" | "rotation" | "orientation" => {
+                matrix = Some(parse_all(value).ok_or_else(|| bad("expected numbers"))?)
+            }
+            "offset" | "origin" | "position" => offset = Some(parse_all(value).ok_or_else(|| bad("expected numbers"))?),
+            "anatomicalorientation" => anatomical = Some(value.to_ascii_uppercase()),
             "elementdatafile" => {
                 data_file = Some(if value.eq_ignore_ascii_case("LOCAL") {
                     None
@@ -185,6 +201,7 @@ fn read_header<R: BufRead>(reader: &mut R, path: &Path) -> Result<Header, Volume
         ));
     }
     let scalar = scalar.ok_or_else(|| header_error(path, "missing ElementType"))?;
+    let patient = patient_frame(ndims, matrix.as_deref(), offset.as_deref(), anatomical.as_deref());
     Ok(Header {
         layout: Layout { dims, scalar, endian },
         spacing,
@@ -192,7 +209,56 @@ fn read_header<R: BufRead>(reader: &mut R, path: &Path) -> Result<Header, Volume
         data_file: data_file.flatten(),
         header_size,
         modality,
+        patient,
     })
+}
+
+/// The patient frame of a 3-D image: the TransformMatrix (axis after axis, LPS) with the
+/// Offset, or else the AnatomicalOrientation code. An identity matrix with a code that says
+/// otherwise follows the code (older writers left the matrix at identity).
+fn patient_frame(
+    ndims: usize,
+    matrix: Option<&[f64]>,
+    offset: Option<&[f64]>,
+    code: Option<&str>,
+) -> Option<PatientFrame> {
+    if ndims != 3 {
+        return None;
+    }
+    let origin = match offset {
+        Some([x, y, z]) => DVec3::new(*x, *y, *z),
+        _ => DVec3::ZERO,
+    };
+    let from_code = code.and_then(|c| {
+        let axes: Vec<DVec3> = c
+            .chars()
+            .map(|l| match l {
+                // The letter names where the axis starts.
+                'R' => Some(DVec3::X),
+                'L' => Some(-DVec3::X),
+                'A' => Some(DVec3::Y),
+                'P' => Some(-DVec3::Y),
+                'I' => Some(DVec3::Z),
+                'S' => Some(-DVec3::Z),
+                _ => None,
+            })
+            .collect::<Option<_>>()?;
+        PatientFrame::new(axes.try_into().ok()?, origin, "MetaImage AnatomicalOrientation")
+    });
+    let from_matrix = match matrix {
+        Some(&[a, b, c, d, e, f, g, h, i]) => PatientFrame::new(
+            [DVec3::new(a, b, c), DVec3::new(d, e, f), DVec3::new(g, h, i)],
+            origin,
+            "MetaImage TransformMatrix",
+        ),
+        _ => None,
+    };
+    let identity = [DVec3::X, DVec3::Y, DVec3::Z];
+    match (from_matrix, from_code) {
+        (Some(m), Some(c)) if m.axes == identity => Some(c),
+        (Some(m), _) => Some(m),
+        (None, c) => c,
+    }
 }
 
 fn parse_all<T: std::str::FromStr>(value: &str) -> Option<Vec<T>> {
@@ -374,6 +440,42 @@ mod tests {
                     .unwrap_or_default()
             );
             assert!(err.contains(expected), "{name}: '{err}' should mention '{expected}'");
+        }
+    }
+
+    #[test]
+    fn transform_matrix_or_anatomical_orientation_give_the_patient_frame() {
+        let dir = ScratchDir::new("mha-orient");
+        let data = [0u8; 8];
+        let cases = [
+            // ITK writes both: the matrix (axis after axis) wins.
+            (
+                "TransformMatrix = 0 1 0 -1 0 0 0 0 1\nOffset = 1 2 3\nAnatomicalOrientation = PLI\n",
+                Some("PRS"),
+                "MetaImage TransformMatrix",
+            ),
+            // No matrix: ITK's code names where each axis starts.
+            (
+                "AnatomicalOrientation = RAI\n",
+                Some("LPS"),
+                "MetaImage AnatomicalOrientation",
+            ),
+            (
+                "AnatomicalOrientation = LPS\n",
+                Some("RAI"),
+                "MetaImage AnatomicalOrientation",
+            ),
+            ("", None, ""),
+        ];
+        for (extra, codes, source) in cases {
+            let mut bytes = header("2 2 2", ScalarType::U8, Endian::Little, extra, "LOCAL").into_bytes();
+            bytes.extend(data);
+            let l = load_metaimage(&dir.write("o.mha", &bytes)).expect(extra);
+            let frame = l.meta.patient;
+            assert_eq!(frame.as_ref().map(|f| f.axis_codes()).as_deref(), codes, "{extra}");
+            if let Some(f) = frame {
+                assert_eq!(f.source, source);
+            }
         }
     }
 }

@@ -7,6 +7,7 @@ pub mod meta;
 pub mod metaimage;
 pub mod nifti;
 pub mod nrrd;
+pub mod orient;
 pub mod procedural;
 pub mod raw;
 mod read;
@@ -20,6 +21,7 @@ use std::path::{Path, PathBuf};
 
 pub use histogram::Histogram;
 pub use meta::{Format, Loaded, Units, VolumeMeta, CT_WINDOW};
+pub use orient::PatientFrame;
 pub use raw::{Endian, RawDesc, ScalarType};
 
 /// Largest voxel count any loader or generator accepts (2^31). Checked before allocating,
@@ -139,14 +141,20 @@ pub fn load(path: &Path) -> Result<Volume, VolumeError> {
 }
 
 /// File extensions [`open`] understands (a directory is read as a DICOM series).
-pub const EXTENSIONS: &str = ".nrrd, .nhdr, .mha, .mhd, .nii, .nii.gz, .hdr, .vti, .dcm (its directory), \
-                              .raw with a .json sidecar, or a directory of DICOM files";
+pub const EXTENSIONS: &str = ".nrrd, .nhdr, .mha, .mhd, .nii, .nii.gz, .hdr, .vti, a DICOM file (its series), \
+                              a DICOMDIR, .raw with a .json sidecar, or a directory of DICOM files";
 
 /// Loads a volume with what the file says about it and its histogram, choosing the reader by
-/// extension; a directory is read as a DICOM series.
+/// extension; a directory, a DICOMDIR or a DICOM file is read as a DICOM series.
 pub fn open(path: &Path) -> Result<Loaded, VolumeError> {
+    open_series(path, None)
+}
+
+/// [`open`], choosing one of several DICOM series by its number or UID
+/// ([`dicom::list_series`]); other formats ignore `series`.
+pub fn open_series(path: &Path, series: Option<&str>) -> Result<Loaded, VolumeError> {
     if path.is_dir() {
-        return dicom::load_dicom_dir(path);
+        return dicom::open_dicom(path, series);
     }
     let name = path
         .file_name()
@@ -160,15 +168,12 @@ pub fn open(path: &Path) -> Result<Loaded, VolumeError> {
         "nii" | "hdr" => nifti::load_nifti(path),
         "gz" if name.ends_with(".nii.gz") || name.ends_with(".hdr.gz") => nifti::load_nifti(path),
         "vti" => vti::load_vti(path),
-        "dcm" => {
-            let dir = path
-                .parent()
-                .filter(|p| !p.as_os_str().is_empty())
-                .unwrap_or(Path::new("."));
-            dicom::load_dicom_dir(dir)
-        }
+        "dcm" | "dicom" | "ima" => dicom::open_dicom(path, series),
+        _ if name == "dicomdir" => dicom::open_dicom(path, series),
         _ => match raw::sidecar_path(path) {
             Some(sidecar) => raw::load_raw_with_sidecar(path, &sidecar),
+            // Scanners often write DICOM files without an extension.
+            None if dicom::is_dicom_file(path) => dicom::open_dicom(path, series),
             None => Err(VolumeError::UnknownFormat {
                 path: path.to_path_buf(),
             }),
@@ -251,8 +256,10 @@ pub enum VolumeError {
         actual_bytes: u64,
         layout: String,
     },
-    #[error("NRRD header of {}{}: {message}", path.display(), line_text(line))]
+    /// A header (or sidecar) that cannot be read; `format` names the file's format.
+    #[error("{format} header of {}{}: {message}", path.display(), line_text(line))]
     Header {
+        format: &'static str,
         path: PathBuf,
         line: Option<usize>,
         message: String,
@@ -271,6 +278,13 @@ pub enum VolumeError {
     Data { path: PathBuf, message: String },
     #[error("time series: {0}")]
     Series(String),
+    #[error(
+        "{} holds several DICOM series; pick one with --series N or --series UID:\n{listing}",
+        path.display()
+    )]
+    SeveralSeries { path: PathBuf, listing: String },
+    #[error("DICOM series in {}: {message}", path.display())]
+    DicomSeries { path: PathBuf, message: String },
     #[error(
         "unknown scene volume '{0}' (valid names: {names})",
         names = procedural::SCENE_VOLUMES.join(", ")

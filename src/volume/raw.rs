@@ -150,9 +150,10 @@ pub fn load_raw_with_sidecar(path: &Path, sidecar: &Path) -> Result<Loaded, Volu
         source,
     })?;
     let side: RawSidecar = serde_json::from_str(&text).map_err(|e| VolumeError::Header {
+        format: "raw sidecar",
         path: sidecar.to_path_buf(),
         line: Some(e.line()),
-        message: format!("raw sidecar: {e}"),
+        message: e.to_string(),
     })?;
     let desc = RawDesc {
         path: path.to_path_buf(),

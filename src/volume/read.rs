@@ -43,13 +43,14 @@ pub(crate) fn io_error(path: &Path) -> impl Fn(io::Error) -> VolumeError + '_ {
     }
 }
 
-/// A header error of a format whose headers have no line structure, prefixed with the
-/// format's name.
-pub(crate) fn format_header_error(path: &Path, format: &str, message: impl Into<String>) -> VolumeError {
+/// A header error of a format whose headers have no line structure; the message names the
+/// format ("DICOM header of …").
+pub(crate) fn format_header_error(path: &Path, format: &'static str, message: impl Into<String>) -> VolumeError {
     VolumeError::Header {
+        format,
         path: path.to_path_buf(),
         line: None,
-        message: format!("{format}: {}", message.into()),
+        message: message.into(),
     }
 }
 

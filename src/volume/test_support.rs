@@ -22,6 +22,9 @@ impl ScratchDir {
 
     pub fn write(&self, name: &str, bytes: &[u8]) -> PathBuf {
         let path = self.path(name);
+        if let Some(parent) = path.parent() {
+            std::fs::create_dir_all(parent).expect("create scratch subdirectory");
+        }
         std::fs::write(&path, bytes).expect("write scratch file");
         path
     }

@@ -4,10 +4,11 @@
 use egui::Ui;
 
 use super::super::controls;
+use super::super::orientation;
 use super::super::tf_model::Function;
 use super::super::widgets;
 use super::{Action, ViewState};
-use crate::scene::{ClipPlane, Environment, Projection, Toggle};
+use crate::scene::{ClipPlane, Environment, Projection, Toggle, MAX_PITCH_DEG};
 
 impl ViewState {
     /// The side panel: status, help, then one collapsible section per part of the scene.
@@ -71,9 +72,13 @@ impl ViewState {
     }
 
     fn camera_ui(&mut self, ui: &mut Ui) {
+        if let Some(view) = orientation::view_buttons(ui) {
+            self.set_view(view);
+        }
         let c = &mut self.scene.camera;
         ui.add(egui::Slider::new(&mut c.yaw_deg, 0.0..=360.0).text("yaw °"));
-        ui.add(egui::Slider::new(&mut c.pitch_deg, -89.0..=89.0).text("pitch °"));
+        ui.add(egui::Slider::new(&mut c.pitch_deg, -MAX_PITCH_DEG..=MAX_PITCH_DEG).text("pitch °"));
+        ui.add(egui::Slider::new(&mut c.roll_deg, -180.0..=180.0).text("roll °"));
         ui.horizontal(|ui| {
             ui.selectable_value(&mut c.projection, Projection::Perspective, "perspective");
             ui.selectable_value(&mut c.projection, Projection::Orthographic, "orthographic");

@@ -1,263 +1,370 @@
-//! Tests of the DICOM series reader with slices written here in each transfer syntax.
+//! DICOM files written here with dicom-object: every uncompressed syntax, files without a
+//! preamble or meta group, scrambled, tilted and incomplete series, several series in one
+//! folder, sign extension, 1-bit frames and hostile element lengths. The public test files of
+//! every compressed syntax and object type are read in `tests/dicom_files.rs`.
+
+use std::path::{Path, PathBuf};
+
+use dicom_core::{DataElement, PrimitiveValue, VR};
+use dicom_dictionary_std::tags;
+use dicom_object::{FileMetaTableBuilder, InMemDicomObject};
+use glam::DVec3;
 
 use super::super::meta::Units;
 use super::super::test_support::ScratchDir;
 use super::*;
 
-/// Writes DICOM elements in one transfer syntax (tests only).
-struct Writer {
-    out: Vec<u8>,
-    explicit: bool,
-    big: bool,
-}
+const CT: &str = "1.2.840.10008.5.1.4.1.1.2";
+const SR: &str = "1.2.840.10008.5.1.4.1.1.88.33";
 
-impl Writer {
-    fn u16(&mut self, v: u16) {
-        self.out
-            .extend(if self.big { v.to_be_bytes() } else { v.to_le_bytes() });
-    }
-    fn u32(&mut self, v: u32) {
-        self.out
-            .extend(if self.big { v.to_be_bytes() } else { v.to_le_bytes() });
-    }
-    /// An element without a VR (items and delimiters, or any element in implicit VR).
-    fn bare(&mut self, group: u16, elem: u16, len: u32) {
-        self.u16(group);
-        self.u16(elem);
-        self.u32(len);
-    }
-    fn element(&mut self, group: u16, elem: u16, vr: &[u8; 2], value: &[u8]) {
-        let mut value = value.to_vec();
-        if value.len() % 2 == 1 {
-            value.push(if vr == b"UI" || vr == b"OB" { 0 } else { b' ' });
-        }
-        if !self.explicit {
-            self.bare(group, elem, value.len() as u32);
-        } else {
-            self.u16(group);
-            self.u16(elem);
-            self.out.extend(vr);
-            if matches!(vr, b"OB" | b"OW" | b"SQ" | b"UN") {
-                self.out.extend([0, 0]);
-                self.u32(value.len() as u32);
-            } else {
-                self.u16(value.len() as u16);
-            }
-        }
-        self.out.extend(value);
-    }
-    fn us(&mut self, group: u16, elem: u16, v: u16) {
-        let bytes = if self.big { v.to_be_bytes() } else { v.to_le_bytes() };
-        self.element(group, elem, b"US", &bytes);
-    }
-}
-
-/// Writes a minimal explicit-VR little-endian CT slice (tests).
-#[allow(clippy::too_many_arguments)]
-fn write_slice(
-    rows: u16,
-    cols: u16,
+/// One slice: geometry, stored pixels and how to store them.
+#[derive(Clone)]
+struct SliceSpec {
+    series: String,
     position: [f64; 3],
     orientation: [f64; 6],
     spacing: [f64; 2],
-    pixels: &[i16],
-    rescale: [f64; 2],
-    series: &str,
-) -> Vec<u8> {
-    let geometry = (position, orientation, spacing);
-    write_slice_in(SYNTAX_EXPLICIT_LE, rows, cols, geometry, pixels, rescale, series)
-}
-
-/// Writes a minimal CT slice in the transfer syntax `syntax` (tests).
-fn write_slice_in(
-    syntax: &str,
     rows: u16,
     cols: u16,
-    (position, orientation, spacing): ([f64; 3], [f64; 6], [f64; 2]),
-    pixels: &[i16],
+    pixels: Vec<u16>,
+    bits_stored: u16,
+    signed: bool,
     rescale: [f64; 2],
-    series: &str,
-) -> Vec<u8> {
-    let ds = |v: &[f64]| {
-        v.iter()
-            .map(|x| x.to_string())
-            .collect::<Vec<_>>()
-            .join("\\")
-            .into_bytes()
-    };
-    let mut w = Writer {
-        out: vec![0u8; 128],
-        explicit: true,
-        big: false,
-    };
-    w.out.extend(b"DICM");
-    // The file meta group is explicit VR little endian in every syntax.
-    w.element(0x0002, 0x0010, b"UI", syntax.as_bytes());
-    w.explicit = syntax != SYNTAX_IMPLICIT_LE;
-    w.big = syntax == SYNTAX_EXPLICIT_BE;
-    w.element(0x0008, 0x0060, b"CS", b"CT");
-    // An undefined-length sequence with one undefined-length item, which the reader must skip.
-    if w.explicit {
-        w.u16(0x0008);
-        w.u16(0x1140);
-        w.out.extend(b"SQ\0\0");
-        w.u32(u32::MAX);
-    } else {
-        w.bare(0x0008, 0x1140, u32::MAX);
-    }
-    w.bare(0xFFFE, 0xE000, u32::MAX);
-    w.element(0x0008, 0x1150, b"UI", b"1.2.3");
-    w.bare(0xFFFE, 0xE00D, 0);
-    w.bare(0xFFFE, 0xE0DD, 0);
-    w.element(0x0018, 0x0050, b"DS", b"2");
-    w.element(0x0020, 0x000E, b"UI", series.as_bytes());
-    w.element(0x0020, 0x0032, b"DS", &ds(&position));
-    w.element(0x0020, 0x0037, b"DS", &ds(&orientation));
-    w.us(0x0028, 0x0002, 1);
-    w.us(0x0028, 0x0010, rows);
-    w.us(0x0028, 0x0011, cols);
-    w.element(0x0028, 0x0030, b"DS", &ds(&spacing));
-    w.us(0x0028, 0x0100, 16);
-    w.us(0x0028, 0x0103, 1);
-    w.element(0x0028, 0x1052, b"DS", &ds(&[rescale[1]]));
-    w.element(0x0028, 0x1053, b"DS", &ds(&[rescale[0]]));
-    let big = w.big;
-    let px: Vec<u8> = pixels
-        .iter()
-        .flat_map(|v| if big { v.to_be_bytes() } else { v.to_le_bytes() })
-        .collect();
-    w.element(0x7FE0, 0x0010, b"OW", &px);
-    w.out
+    instance: i64,
 }
 
-const AXIAL: [f64; 6] = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0];
+impl SliceSpec {
+    fn new(series: &str, z: f64, pixels: Vec<i16>) -> SliceSpec {
+        SliceSpec {
+            series: series.into(),
+            position: [-10.0, 20.0, z],
+            orientation: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0],
+            spacing: [0.5, 0.5],
+            rows: 2,
+            cols: 3,
+            pixels: pixels.into_iter().map(|v| v as u16).collect(),
+            bits_stored: 16,
+            signed: true,
+            rescale: [1.0, -1024.0],
+            instance: 0,
+        }
+    }
+}
 
-/// Slice k holds the value 100·k + x everywhere, so order and rescale are checkable.
-fn slice_pixels(k: i16, cols: u16, rows: u16) -> Vec<i16> {
-    (0..rows)
-        .flat_map(|_| (0..cols).map(move |x| 100 * k + x as i16))
+fn ds(values: &[f64]) -> PrimitiveValue {
+    PrimitiveValue::from(values.iter().map(|v| v.to_string()).collect::<Vec<_>>().join("\\"))
+}
+
+fn image_object(s: &SliceSpec) -> InMemDicomObject {
+    let mut o = InMemDicomObject::new_empty();
+    let mut put = |tag, vr, value: PrimitiveValue| {
+        o.put(DataElement::new(tag, vr, value));
+    };
+    put(tags::SOP_CLASS_UID, VR::UI, PrimitiveValue::from(CT));
+    put(
+        tags::SOP_INSTANCE_UID,
+        VR::UI,
+        PrimitiveValue::from(format!("2.25.{}", s.instance + 1000)),
+    );
+    put(tags::MODALITY, VR::CS, PrimitiveValue::from("CT"));
+    put(
+        tags::SERIES_INSTANCE_UID,
+        VR::UI,
+        PrimitiveValue::from(s.series.as_str()),
+    );
+    put(
+        tags::SERIES_DESCRIPTION,
+        VR::LO,
+        PrimitiveValue::from(format!("series {}", s.series)),
+    );
+    put(
+        tags::INSTANCE_NUMBER,
+        VR::IS,
+        PrimitiveValue::from(s.instance.to_string()),
+    );
+    put(tags::IMAGE_POSITION_PATIENT, VR::DS, ds(&s.position));
+    put(tags::IMAGE_ORIENTATION_PATIENT, VR::DS, ds(&s.orientation));
+    put(tags::SAMPLES_PER_PIXEL, VR::US, PrimitiveValue::from(1u16));
+    put(
+        tags::PHOTOMETRIC_INTERPRETATION,
+        VR::CS,
+        PrimitiveValue::from("MONOCHROME2"),
+    );
+    put(tags::ROWS, VR::US, PrimitiveValue::from(s.rows));
+    put(tags::COLUMNS, VR::US, PrimitiveValue::from(s.cols));
+    put(tags::PIXEL_SPACING, VR::DS, ds(&s.spacing));
+    put(tags::BITS_ALLOCATED, VR::US, PrimitiveValue::from(16u16));
+    put(tags::BITS_STORED, VR::US, PrimitiveValue::from(s.bits_stored));
+    put(tags::HIGH_BIT, VR::US, PrimitiveValue::from(s.bits_stored - 1));
+    put(
+        tags::PIXEL_REPRESENTATION,
+        VR::US,
+        PrimitiveValue::from(u16::from(s.signed)),
+    );
+    put(tags::RESCALE_INTERCEPT, VR::DS, ds(&[s.rescale[1]]));
+    put(tags::RESCALE_SLOPE, VR::DS, ds(&[s.rescale[0]]));
+    put(tags::PIXEL_DATA, VR::OW, PrimitiveValue::U16(s.pixels.clone().into()));
+    o
+}
+
+/// Writes `obj` as a Part-10 file in transfer syntax `syntax`.
+fn write(obj: InMemDicomObject, syntax: &str, sop_class: &str, path: &Path) {
+    let file = obj
+        .with_meta(
+            FileMetaTableBuilder::new()
+                .transfer_syntax(syntax)
+                .media_storage_sop_class_uid(sop_class),
+        )
+        .expect("meta");
+    file.write_to_file(path).expect("write DICOM");
+}
+
+fn write_series(dir: &Path, slices: &[SliceSpec], syntax: &str) -> Vec<PathBuf> {
+    slices
+        .iter()
+        .enumerate()
+        .map(|(k, s)| {
+            let path = dir.join(format!("{}-{k}.dcm", s.series));
+            write(image_object(s), syntax, CT, &path);
+            path
+        })
         .collect()
 }
 
-#[test]
-fn series_is_sorted_rescaled_and_spaced_from_positions() {
-    let dir = ScratchDir::new("dicom");
-    // Written in scrambled order and file names; positions decide the order.
-    for (file, k) in [("b", 2i16), ("a", 0), ("c", 1), ("d", 3)] {
-        let pos = [-10.0, -20.0, 5.0 + 2.5 * f64::from(k)];
-        let bytes = write_slice(
-            3,
-            4,
-            pos,
-            AXIAL,
-            [0.7, 0.6],
-            &slice_pixels(k, 4, 3),
-            [2.0, -1024.0],
-            "1.2.9",
-        );
-        dir.write(file, &bytes);
-    }
-    dir.write("README.txt", b"not dicom");
-    let l = load_dicom_dir(&dir.path("")).expect("load");
-    let v = &l.volume;
-    assert_eq!(v.dims, [4, 3, 4]);
-    assert_eq!(v.spacing, [0.6, 0.7, 2.5]);
-    for k in 0..4 {
-        for x in 0..4 {
-            assert_eq!(v.get(x, 1, k), 2.0 * (100.0 * k as f32 + x as f32) - 1024.0);
-        }
-    }
-    assert_eq!(l.meta.units, Units::Hounsfield);
+/// Stored values of slice k of a 3×2 test series.
+fn stored(k: i16) -> Vec<i16> {
+    (0..6).map(|i| 1000 + 100 * k + i).collect()
 }
 
 #[test]
-fn every_uncompressed_transfer_syntax_reads_the_same() {
-    let pixels = slice_pixels(3, 4, 2);
-    for syntax in [SYNTAX_IMPLICIT_LE, SYNTAX_EXPLICIT_LE, SYNTAX_EXPLICIT_BE] {
-        let geometry = ([1.0, 2.0, 3.0], AXIAL, [0.5, 0.25]);
-        let bytes = write_slice_in(syntax, 2, 4, geometry, &pixels, [1.0, -1024.0], "5");
-        let s = parse_slice(&bytes, Path::new("x.dcm")).unwrap_or_else(|e| panic!("{syntax}: {e}"));
-        assert_eq!(
-            (s.rows, s.columns, s.bits_allocated, s.signed),
-            (2, 4, 16, true),
-            "{syntax}"
-        );
-        assert_eq!(s.pixel_spacing, Some([0.5, 0.25]));
-        assert_eq!(s.position, Some(DVec3::new(1.0, 2.0, 3.0)));
-        assert_eq!((s.slope, s.intercept), (1.0, -1024.0));
-        let values = decode_samples(&s.pixels, ScalarType::I16, s.endian);
-        let expected: Vec<f32> = pixels.iter().map(|&v| f32::from(v)).collect();
-        assert_eq!(values, expected, "{syntax}");
+fn uncompressed_syntaxes_load_a_scrambled_series_sorted_and_rescaled() {
+    for syntax in [
+        parse::EXPLICIT_VR_LE,
+        parse::IMPLICIT_VR_LE,
+        "1.2.840.10008.1.2.2",
+        "1.2.840.10008.1.2.1.99",
+    ] {
+        let dir = ScratchDir::new("dicom-syntax");
+        // Written out of order: z = 4, 0, 2 mm.
+        let slices: Vec<SliceSpec> = [(2, 4.0), (0, 0.0), (1, 2.0)]
+            .into_iter()
+            .map(|(k, z)| SliceSpec::new("1.2.3", z, stored(k)))
+            .collect();
+        write_series(&dir.path(""), &slices, syntax);
+        let l = open_dicom(&dir.path(""), None).unwrap_or_else(|e| panic!("{syntax}: {e}"));
+        assert_eq!(l.volume.dims, [3, 2, 3], "{syntax}");
+        assert_eq!(l.volume.spacing, [0.5, 0.5, 2.0], "{syntax}");
+        let expected: Vec<f32> = (0..3).flat_map(stored).map(|v| f32::from(v) - 1024.0).collect();
+        assert_eq!(l.volume.data, expected, "{syntax}");
+        assert_eq!(l.meta.units, Units::Hounsfield);
+        let frame = l.meta.patient.as_ref().expect("patient frame");
+        assert_eq!(frame.axis_codes(), "LPS");
+        assert_eq!(frame.origin, DVec3::new(-10.0, 20.0, 0.0));
     }
 }
 
 #[test]
-fn tilted_stack_is_sorted_along_the_normal_and_unsheared() {
-    let dir = ScratchDir::new("dicom-tilt");
-    // Rotated orientation (rows along y, columns along -x): normal is +z.
-    let orient = [0.0, 1.0, 0.0, -1.0, 0.0, 0.0];
-    // Gantry tilt: each slice moves 1 mm along the row direction (+y) per 2 mm in z.
-    for k in 0..3i16 {
-        let pos = [0.0, f64::from(k), 2.0 * f64::from(k)];
-        let mut px = vec![0i16; 8 * 8];
-        // A bright voxel at the same physical point (y = 4 mm) in every slice.
-        px[4 * 8 + (4 - k as usize)] = 1000;
-        dir.write(
-            &format!("s{k}"),
-            &write_slice(8, 8, pos, orient, [1.0, 1.0], &px, [1.0, 0.0], "7"),
-        );
-    }
-    let l = load_dicom_dir(&dir.path("")).expect("load");
-    assert!((l.volume.spacing[2] - 2.0).abs() < 1e-6, "{:?}", l.volume.spacing);
-    for k in 0..3 {
-        assert_eq!(
-            l.volume.get(4, 4, k),
-            1000.0,
-            "slice {k} should be shifted back onto the straight grid"
-        );
-    }
-    assert!(l.meta.notes.iter().any(|n| n.contains("tilted")));
-}
-
-#[test]
-fn malformed_slices_fail_clearly() {
-    let dir = ScratchDir::new("dicom-bad");
-    let good = write_slice(4, 4, [0.0; 3], AXIAL, [1.0, 1.0], &[0; 16], [1.0, 0.0], "1");
-    let mut compressed = good.clone();
-    let at = compressed
-        .windows(19)
-        .position(|w| w == SYNTAX_EXPLICIT_LE.as_bytes())
+fn files_without_preamble_or_meta_group_load() {
+    let dir = ScratchDir::new("dicom-nometa");
+    let slice = SliceSpec::new("9.8", 0.0, stored(0));
+    let full = dir.path("full.dcm");
+    write(image_object(&slice), parse::EXPLICIT_VR_LE, CT, &full);
+    let bytes = std::fs::read(&full).unwrap();
+    let expected: Vec<f32> = stored(0).into_iter().map(|v| f32::from(v) - 1024.0).collect();
+    // "DICM" at byte 0, no preamble.
+    let no_preamble = dir.write("a/no-preamble.dcm", &bytes[128..]);
+    assert_eq!(open_dicom(&no_preamble, None).unwrap().volume.data, expected);
+    // A bare implicit VR little endian data set: no preamble, no marker, no meta group.
+    let mut bare = Vec::new();
+    use dicom_transfer_syntax_registry::TransferSyntaxIndex;
+    let implicit = dicom_transfer_syntax_registry::TransferSyntaxRegistry
+        .get(parse::IMPLICIT_VR_LE)
         .unwrap();
-    compressed.splice(at..at + 19, b"1.2.840.10008.1.2.4.50".iter().copied());
-    compressed[at - 2..at].copy_from_slice(&22u16.to_le_bytes());
-    let mut huge_len = good.clone();
-    let px_at = huge_len.len() - 32 - 4;
-    huge_len[px_at..px_at + 4].copy_from_slice(&0x7FFF_FFF0u32.to_le_bytes());
-    let cases: Vec<(&str, Vec<u8>, &str)> = vec![
-        ("truncated", good[..good.len() - 10].to_vec(), "past the end"),
-        ("compressed", compressed, "compressed or unknown"),
-        ("huge", huge_len, "past the end"),
-        ("nodicm", vec![0u8; 200], "not a DICOM"),
-    ];
-    for (name, bytes, expected) in cases {
-        let p = dir.write(name, &bytes);
-        let err = parse_slice(&std::fs::read(&p).unwrap(), &p)
-            .expect_err(name)
-            .to_string();
-        assert!(err.contains(expected), "{name}: '{err}' should mention '{expected}'");
+    image_object(&slice).write_dataset_with_ts(&mut bare, implicit).unwrap();
+    let bare = dir.write("b/bare", &bare);
+    assert!(is_dicom_file(&bare));
+    let l = crate::volume::open(&bare).expect("bare data set");
+    assert_eq!(l.volume.data, expected);
+}
+
+#[test]
+fn bits_stored_are_masked_and_sign_extended() {
+    let dir = ScratchDir::new("dicom-bits");
+    // 12 stored bits, signed: 0xF000 garbage above bit 11 (an old overlay) must be ignored and
+    // 0x800..0xFFF are negative.
+    let mut s = SliceSpec::new("4.5", 0.0, vec![0; 6]);
+    s.bits_stored = 12;
+    s.rescale = [1.0, 0.0];
+    s.pixels = vec![0xF001, 0x07FF, 0x0800, 0x0FFF, 0xA123, 0x0000];
+    write_series(&dir.path(""), &[s.clone()], parse::EXPLICIT_VR_LE);
+    let l = open_dicom(&dir.path(""), None).unwrap();
+    assert_eq!(l.volume.data, vec![1.0, 2047.0, -2048.0, -1.0, 0x123 as f32, 0.0]);
+    // The same bits unsigned.
+    let dir = ScratchDir::new("dicom-bits-u");
+    s.signed = false;
+    write_series(&dir.path(""), &[s], parse::EXPLICIT_VR_LE);
+    let l = open_dicom(&dir.path(""), None).unwrap();
+    assert_eq!(l.volume.data, vec![1.0, 2047.0, 2048.0, 4095.0, 0x123 as f32, 0.0]);
+}
+
+#[test]
+fn one_bit_frames_are_packed_across_frame_boundaries() {
+    let dir = ScratchDir::new("dicom-1bit");
+    // Two 3×3 frames: 18 bits, the second frame starts inside the second byte.
+    let bits: Vec<u8> = vec![1, 0, 1, 1, 1, 0, 0, 0, 1, /* frame 2 */ 0, 1, 1, 0, 0, 0, 1, 1, 0];
+    let mut packed = vec![0u8; 3];
+    for (i, b) in bits.iter().enumerate() {
+        packed[i / 8] |= b << (i % 8);
     }
-    // A series of 10^6 × 10^6-pixel slices is refused before allocating the volume.
-    let s = Slice {
-        rows: 65535,
-        columns: 65535,
-        bits_allocated: 16,
-        slope: 1.0,
-        ..Slice::default()
+    let mut o = InMemDicomObject::new_empty();
+    let mut put = |tag, vr, value: PrimitiveValue| {
+        o.put(DataElement::new(tag, vr, value));
     };
-    let err = assemble(vec![s; 1000], Path::new("x")).expect_err("absurd").to_string();
-    assert!(err.contains("exceed the limit"), "{err}");
-    // An empty directory says so.
-    let empty = ScratchDir::new("dicom-empty");
-    let err = load_dicom_dir(&empty.path("")).expect_err("empty").to_string();
-    assert!(err.contains("no DICOM files"), "{err}");
+    put(
+        tags::SOP_CLASS_UID,
+        VR::UI,
+        PrimitiveValue::from("1.2.840.10008.5.1.4.1.1.7.1"),
+    );
+    put(tags::SERIES_INSTANCE_UID, VR::UI, PrimitiveValue::from("7.7"));
+    put(tags::NUMBER_OF_FRAMES, VR::IS, PrimitiveValue::from("2"));
+    put(tags::SAMPLES_PER_PIXEL, VR::US, PrimitiveValue::from(1u16));
+    put(
+        tags::PHOTOMETRIC_INTERPRETATION,
+        VR::CS,
+        PrimitiveValue::from("MONOCHROME2"),
+    );
+    put(tags::ROWS, VR::US, PrimitiveValue::from(3u16));
+    put(tags::COLUMNS, VR::US, PrimitiveValue::from(3u16));
+    put(tags::BITS_ALLOCATED, VR::US, PrimitiveValue::from(1u16));
+    put(tags::BITS_STORED, VR::US, PrimitiveValue::from(1u16));
+    put(tags::PIXEL_DATA, VR::OB, PrimitiveValue::U8(packed.into()));
+    write(
+        o,
+        parse::EXPLICIT_VR_LE,
+        "1.2.840.10008.5.1.4.1.1.7.1",
+        &dir.path("mask.dcm"),
+    );
+    let l = open_dicom(&dir.path(""), None).unwrap();
+    assert_eq!(l.volume.dims, [3, 3, 2]);
+    assert_eq!(l.volume.data, bits.iter().map(|&b| f32::from(b)).collect::<Vec<_>>());
+}
+
+#[test]
+fn several_series_are_listed_and_chosen_by_number_uid_or_file() {
+    let dir = ScratchDir::new("dicom-multi");
+    let a: Vec<SliceSpec> = (0..3).map(|k| SliceSpec::new("1.1", k as f64, stored(k))).collect();
+    let b: Vec<SliceSpec> = (0..2)
+        .map(|k| SliceSpec::new("2.2", k as f64 * 5.0, stored(5 + k)))
+        .collect();
+    let files_b = write_series(&dir.path(""), &b, parse::EXPLICIT_VR_LE);
+    write_series(&dir.path(""), &a, parse::EXPLICIT_VR_LE);
+    dir.write("notes.txt", b"not DICOM");
+    let list = list_series(&dir.path("")).unwrap();
+    assert_eq!(list.len(), 2);
+    assert_eq!((list[0].uid.as_str(), list[0].frames), ("1.1", 3));
+    assert_eq!(
+        (list[1].uid.as_str(), list[1].frames, list[1].description.as_str()),
+        ("2.2", 2, "series 2.2")
+    );
+    let err = open_dicom(&dir.path(""), None).unwrap_err().to_string();
+    assert!(
+        err.contains("several DICOM series") && err.contains("1.1") && err.contains("2.2"),
+        "{err}"
+    );
+    assert_eq!(open_dicom(&dir.path(""), Some("2")).unwrap().volume.dims[2], 2);
+    assert_eq!(open_dicom(&dir.path(""), Some("1.1")).unwrap().volume.dims[2], 3);
+    assert!(open_dicom(&dir.path(""), Some("3"))
+        .unwrap_err()
+        .to_string()
+        .contains("no series '3'"));
+    // A file opens its own series; a broken file of another series does not stop it.
+    dir.write("broken.dcm", b"DICM\x02\x00\x10\x00UI\xff\x7f");
+    let l = open_dicom(&files_b[1], None).unwrap();
+    assert_eq!(l.volume.dims[2], 2);
+    assert!(
+        l.meta.notes.iter().any(|n| n.contains("unreadable")),
+        "{:?}",
+        l.meta.notes
+    );
+}
+
+#[test]
+fn a_missing_slice_is_reported_and_interpolated_on_a_regular_grid() {
+    let dir = ScratchDir::new("dicom-gap");
+    // Slices at 0, 2, 4, 8, 10 mm: the one at 6 mm is missing.
+    let slices: Vec<SliceSpec> = [0, 1, 2, 4, 5]
+        .into_iter()
+        .map(|k| SliceSpec::new("3.3", 2.0 * f64::from(k), stored(k)))
+        .collect();
+    write_series(&dir.path(""), &slices, parse::EXPLICIT_VR_LE);
+    let l = open_dicom(&dir.path(""), None).unwrap();
+    assert_eq!(l.volume.dims, [3, 2, 6]);
+    assert_eq!(l.volume.spacing[2], 2.0);
+    // The filled slice lies halfway between its neighbours, as the stored ramp does.
+    let expected: Vec<f32> = (0..6).flat_map(stored).map(|v| f32::from(v) - 1024.0).collect();
+    assert_eq!(l.volume.data, expected);
+    assert!(l.meta.notes.iter().any(|n| n.contains("missing")), "{:?}", l.meta.notes);
+}
+
+#[test]
+fn tilted_stacks_are_moved_onto_a_straight_grid() {
+    let dir = ScratchDir::new("dicom-tilt");
+    // Each slice starts one column (0.5 mm) further along x than the one below it (gantry
+    // tilt). On the straight grid of the first slice, slice k's bright column 1 lies at 1 + k.
+    let slices: Vec<SliceSpec> = (0..3)
+        .map(|k| {
+            let mut s = SliceSpec::new("5.5", f64::from(k), vec![0; 6]);
+            s.position[0] += 0.5 * f64::from(k);
+            s.pixels = (0..6).map(|i| if i % 3 == 1 { 2000 } else { 1000 }).collect();
+            s
+        })
+        .collect();
+    write_series(&dir.path(""), &slices, parse::EXPLICIT_VR_LE);
+    let l = open_dicom(&dir.path(""), None).unwrap();
+    assert!(l.meta.notes.iter().any(|n| n.contains("tilted")), "{:?}", l.meta.notes);
+    // Slice 1 moved back by one column: its bright column lands on x = 2.
+    assert_eq!(l.volume.get(2, 0, 1), 2000.0 - 1024.0);
+    assert_eq!(l.volume.get(1, 0, 0), 2000.0 - 1024.0);
+}
+
+#[test]
+fn objects_without_pixels_and_hostile_lengths_fail_clearly() {
+    let dir = ScratchDir::new("dicom-bad");
+    let mut sr = InMemDicomObject::new_empty();
+    sr.put(DataElement::new(tags::SOP_CLASS_UID, VR::UI, PrimitiveValue::from(SR)));
+    sr.put(DataElement::new(
+        tags::SERIES_INSTANCE_UID,
+        VR::UI,
+        PrimitiveValue::from("8.8"),
+    ));
+    write(sr, parse::EXPLICIT_VR_LE, SR, &dir.path("report.dcm"));
+    let err = open_dicom(&dir.path("report.dcm"), None).unwrap_err().to_string();
+    assert!(err.contains("holds no image: Structured Report"), "{err}");
+    // A data-set element claiming 4 GiB - 2 bytes: refused before anything is allocated.
+    let good = dir.path("good.dcm");
+    write(
+        image_object(&SliceSpec::new("6.6", 0.0, stored(0))),
+        parse::EXPLICIT_VR_LE,
+        CT,
+        &good,
+    );
+    let mut bytes = std::fs::read(&good).unwrap();
+    let at = bytes.windows(4).position(|w| w == [0x08, 0x00, 0x60, 0x00]).unwrap();
+    bytes[at + 4..at + 6].copy_from_slice(b"OB");
+    bytes[at + 6..at + 12].copy_from_slice(&[0, 0, 0xFE, 0xFF, 0xFF, 0xFF]);
+    let hostile = dir.write("h/hostile.dcm", &bytes);
+    let err = open_dicom(&hostile, None).unwrap_err().to_string();
+    assert!(err.contains("claims 4294967294 bytes"), "{err}");
+    let err = open_dicom(&dir.write("t/truncated.dcm", &bytes[..200]), None)
+        .unwrap_err()
+        .to_string();
+    assert!(err.starts_with("DICOM header of"), "{err}");
+    // An unknown VR has a 32-bit length for dicom-rs (it reads it as UN): found by fuzzing,
+    // where the walk took a 16-bit length and dicom-rs then allocated 273 MB.
+    bytes[at + 4..at + 6].copy_from_slice(b"ZZ");
+    bytes[at + 6..at + 12].copy_from_slice(&[0, 0, 0x43, 0x46, 0x4C, 0x10]);
+    let err = open_dicom(&dir.write("u/unknown-vr.dcm", &bytes), None)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("claims 273434179 bytes"), "{err}");
 }

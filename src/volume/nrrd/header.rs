@@ -3,6 +3,9 @@
 use std::io::{BufRead, Read};
 use std::path::{Path, PathBuf};
 
+use glam::DVec3;
+
+use crate::volume::orient::PatientFrame;
 use crate::volume::{Endian, ScalarType, VolumeError};
 
 /// Longest header line accepted; a binary file mistaken for NRRD fails fast instead of
@@ -46,6 +49,8 @@ pub(super) struct NrrdHeader {
     pub byte_skip: u64,
     /// Value of a `modality:=` key/value pair (CT, MR, ...).
     pub modality: Option<String>,
+    /// From `space`, `space directions` and `space origin` when the space is anatomical.
+    pub patient: Option<PatientFrame>,
 }
 
 /// Fields as found, before checking that the required ones are present.
@@ -57,7 +62,9 @@ struct Fields {
     endian: Option<Endian>,
     encoding: Option<Encoding>,
     spacings: Option<[f32; 3]>,
-    directions: Option<[f32; 3]>,
+    directions: Option<[Option<[f64; 3]>; 3]>,
+    space: Option<String>,
+    origin: Option<[f64; 3]>,
     data_file: Option<PathBuf>,
     line_skip: u64,
     byte_skip: u64,
@@ -69,6 +76,7 @@ struct Fields {
 /// a detached data file.
 pub(super) fn read_header<R: BufRead>(reader: &mut R, path: &Path) -> Result<NrrdHeader, VolumeError> {
     let header_err = |line: usize, message: String| VolumeError::Header {
+        format: "NRRD",
         path: path.to_path_buf(),
         line: Some(line),
         message,
@@ -163,6 +171,11 @@ fn parse_field(fields: &mut Fields, key: &str, value: &str, path: &Path) -> Resu
         }
         "spacings" => fields.spacings = Some(parse_list(value, "spacings", parse_spacing)?),
         "space directions" => fields.directions = Some(parse_directions(value)?),
+        "space" => fields.space = Some(value.to_ascii_lowercase()),
+        "space origin" => {
+            let [origin] = parse_vectors::<1>(value, "space origin")?;
+            fields.origin = Some(origin.ok_or_else(|| "space origin: expected a vector, not 'none'".to_string())?);
+        }
         "data file" | "datafile" => fields.data_file = parse_data_file(value, path)?,
         "line skip" | "lineskip" => fields.line_skip = parse_number(value, "line skip")?,
         "byte skip" | "byteskip" => {
@@ -171,10 +184,10 @@ fn parse_field(fields: &mut Fields, key: &str, value: &str, path: &Path) -> Resu
             }
             fields.byte_skip = parse_number(value, "byte skip")?;
         }
-        "content" | "space" | "space dimension" | "space origin" | "space units" | "kinds" | "centers"
-        | "centerings" | "labels" | "units" | "min" | "max" | "old min" | "oldmin" | "old max" | "oldmax"
-        | "measurement frame" | "thicknesses" | "axis mins" | "axismins" | "axis maxs" | "axismaxs"
-        | "sample units" | "sampleunits" | "number" | "block size" | "blocksize" => {}
+        "content" | "space dimension" | "space units" | "kinds" | "centers" | "centerings" | "labels" | "units"
+        | "min" | "max" | "old min" | "oldmin" | "old max" | "oldmax" | "measurement frame" | "thicknesses"
+        | "axis mins" | "axismins" | "axis maxs" | "axismaxs" | "sample units" | "sampleunits" | "number"
+        | "block size" | "blocksize" => {}
         other => log::warn!("{}: ignoring unknown NRRD field '{other}'", path.display()),
     }
     Ok(())
@@ -182,6 +195,7 @@ fn parse_field(fields: &mut Fields, key: &str, value: &str, path: &Path) -> Resu
 
 fn finish(fields: Fields, path: &Path) -> Result<NrrdHeader, VolumeError> {
     let missing = |name: &str| VolumeError::Header {
+        format: "NRRD",
         path: path.to_path_buf(),
         line: None,
         message: format!("missing required field '{name}'"),
@@ -201,7 +215,26 @@ fn finish(fields: Fields, path: &Path) -> Result<NrrdHeader, VolumeError> {
             Endian::Little
         }
     };
-    let spacing = fields.directions.or(fields.spacings).unwrap_or([1.0; 3]);
+    let norms = fields
+        .directions
+        .map(|d| d.map(|v| v.map_or(1.0, |v| DVec3::from(v).length() as f32)));
+    let spacing = norms.or(fields.spacings).unwrap_or([1.0; 3]);
+    let patient = match (fields.space.as_deref(), fields.directions) {
+        (Some(space), Some([Some(x), Some(y), Some(z)])) => {
+            let origin = DVec3::from(fields.origin.unwrap_or([0.0; 3]));
+            let axes = [x, y, z].map(DVec3::from);
+            match space {
+                "left-posterior-superior" | "lps" => PatientFrame::new(axes, origin, "NRRD space directions"),
+                "right-anterior-superior" | "ras" => PatientFrame::from_ras(axes, origin, "NRRD space directions"),
+                "left-anterior-superior" | "las" => {
+                    let lps = |v: DVec3| DVec3::new(v.x, -v.y, v.z);
+                    PatientFrame::new(axes.map(lps), lps(origin), "NRRD space directions")
+                }
+                _ => None,
+            }
+        }
+        _ => None,
+    };
     Ok(NrrdHeader {
         scalar,
         dims,
@@ -212,6 +245,7 @@ fn finish(fields: Fields, path: &Path) -> Result<NrrdHeader, VolumeError> {
         line_skip: fields.line_skip,
         byte_skip: fields.byte_skip,
         modality: fields.modality,
+        patient,
     })
 }
 
@@ -230,6 +264,7 @@ fn read_line<R: BufRead>(reader: &mut R, path: &Path, line_no: usize) -> Result<
         return Ok(None);
     }
     let header_err = |message: &str| VolumeError::Header {
+        format: "NRRD",
         path: path.to_path_buf(),
         line: Some(line_no),
         message: message.to_string(),
@@ -285,44 +320,53 @@ fn parse_spacing(token: &str) -> Result<f32, String> {
     Ok(size)
 }
 
-/// "(1,0,0) (0,0.5,0) (0,0,2)" → voxel sizes as vector lengths; "none" axes get 1.0.
-fn parse_directions(value: &str) -> Result<[f32; 3], String> {
-    let mut sizes = Vec::new();
+/// "(1,0,0) (0,0.5,0) (0,0,2)" → one vector per axis (its length is the voxel size); "none"
+/// axes have none.
+fn parse_directions(value: &str) -> Result<[Option<[f64; 3]>; 3], String> {
+    let vectors = parse_vectors::<3>(value, "space directions")?;
+    for v in vectors.iter().flatten() {
+        let norm = DVec3::from(*v).length() as f32;
+        if !norm.is_finite() || norm == 0.0 {
+            return Err(format!("space directions: {v:?} must be a finite non-zero vector"));
+        }
+    }
+    Ok(vectors)
+}
+
+/// `N` vectors "(x,y,z)" or "none", separated by spaces.
+fn parse_vectors<const N: usize>(value: &str, field: &str) -> Result<[Option<[f64; 3]>; N], String> {
+    let mut vectors = Vec::new();
     let mut rest = value.trim_start();
     while !rest.is_empty() {
         if let Some(after) = rest.strip_prefix("none") {
-            sizes.push(1.0);
+            vectors.push(None);
             rest = after.trim_start();
             continue;
         }
         let Some(inner_and_rest) = rest.strip_prefix('(') else {
-            return Err(format!("space directions: expected '(' or 'none' at '{rest}'"));
+            return Err(format!("{field}: expected '(' or 'none' at '{rest}'"));
         };
         let Some((inner, after)) = inner_and_rest.split_once(')') else {
-            return Err("space directions: missing ')'".to_string());
+            return Err(format!("{field}: missing ')'"));
         };
-        let mut norm2 = 0.0f64;
-        for component in inner.split(',') {
-            let c: f64 = component
-                .trim()
-                .parse()
-                .map_err(|_| format!("space directions: '{}' is not a number", component.trim()))?;
-            norm2 += c * c;
-        }
-        let norm = norm2.sqrt() as f32;
-        if !norm.is_finite() || norm == 0.0 {
-            return Err(format!("space directions: ({inner}) must be a finite non-zero vector"));
-        }
-        sizes.push(norm);
+        let components = inner
+            .split(',')
+            .map(|c| {
+                c.trim()
+                    .parse::<f64>()
+                    .map_err(|_| format!("{field}: '{}' is not a number", c.trim()))
+            })
+            .collect::<Result<Vec<f64>, String>>()?;
+        let [x, y, z] = components[..] else {
+            return Err(format!("{field}: ({inner}) must have 3 components"));
+        };
+        vectors.push(Some([x, y, z]));
         rest = after.trim_start();
     }
-    let [a, b, c] = sizes.as_slice() else {
-        return Err(format!(
-            "space directions has {} entries but the volume has 3 axes",
-            sizes.len()
-        ));
-    };
-    Ok([*a, *b, *c])
+    let count = vectors.len();
+    vectors
+        .try_into()
+        .map_err(|_| format!("{field} has {count} entries but the volume has {N} axes"))
 }
 
 fn parse_data_file(value: &str, header_path: &Path) -> Result<Option<PathBuf>, String> {

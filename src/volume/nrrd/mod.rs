@@ -46,6 +46,7 @@ pub fn open_nrrd(path: &Path) -> Result<Loaded, VolumeError> {
     if let Some(modality) = &header.modality {
         meta = meta.with_modality(modality);
     }
+    meta.patient = header.patient.clone();
     Ok(Loaded::new(Volume::new(header.dims, header.spacing, data)?, meta))
 }
 

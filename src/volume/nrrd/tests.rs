@@ -88,6 +88,50 @@ fn space_directions_give_spacing() {
 }
 
 #[test]
+fn anatomical_spaces_give_the_patient_frame_in_lps() {
+    use glam::DVec3;
+    let dir = ScratchDir::new("nrrd-space");
+    let data: Vec<u8> = [1.0f32, 2.0].iter().flat_map(|v| v.to_le_bytes()).collect();
+    // The same voxel axes (x towards the patient's right, y anterior, z superior) written in
+    // each anatomical space; "none" or a non-anatomical space gives no frame.
+    for (space, dirs, origin, codes) in [
+        (
+            "right-anterior-superior",
+            "(2,0,0) (0,2,0) (0,0,3)",
+            "(10,20,30)",
+            Some("RAS"),
+        ),
+        ("RAS", "(2,0,0) (0,2,0) (0,0,3)", "(10,20,30)", Some("RAS")),
+        (
+            "left-posterior-superior",
+            "(-2,0,0) (0,-2,0) (0,0,3)",
+            "(-10,-20,30)",
+            Some("RAS"),
+        ),
+        (
+            "left-anterior-superior",
+            "(-2,0,0) (0,2,0) (0,0,3)",
+            "(-10,20,30)",
+            Some("RAS"),
+        ),
+        ("scanner-xyz", "(2,0,0) (0,2,0) (0,0,3)", "(10,20,30)", None),
+    ] {
+        let header = format!(
+            "NRRD0004\ntype: float\ndimension: 3\nspace: {space}\nsizes: 1 1 2\n\
+             space directions: {dirs}\nspace origin: {origin}\nendian: little\nencoding: raw\n\n"
+        );
+        let path = dir.write("o.nrrd", &attached(&header, &data));
+        let loaded = super::open_nrrd(&path).expect("load");
+        assert_eq!(loaded.volume.spacing, [2.0, 2.0, 3.0], "{space}");
+        let frame = loaded.meta.patient;
+        assert_eq!(frame.as_ref().map(|f| f.axis_codes()).as_deref(), codes, "{space}");
+        if let Some(f) = frame {
+            assert!((f.origin - DVec3::new(-10.0, -20.0, 30.0)).length() < 1e-9, "{space}");
+        }
+    }
+}
+
+#[test]
 fn ascii_encoding() {
     let dir = ScratchDir::new("nrrd-ascii");
     let header = "NRRD0001\ntype: double\ndimension: 3\nsizes: 2 2 1\nencoding: ascii\n\n";

@@ -13,15 +13,31 @@ pub fn input_file(name: &str, data: &[u8]) -> PathBuf {
 }
 
 /// Loads `data` as a volume file named `name`; a successful load must satisfy the Volume
-/// invariants (the loaders return errors, never panic, for anything else).
+/// invariants (the loaders return errors, never panic, for anything else), and so must its
+/// reorientation for display, which keeps every sample.
 #[allow(dead_code)]
 pub fn load(name: &str, data: &[u8]) {
     let path = input_file(name, data);
     if let Ok(loaded) = caustica::volume::open(&path) {
-        let v = &loaded.volume;
-        assert_eq!(v.data.len(), v.dims.iter().product::<usize>());
-        assert!(v.data.iter().all(|x| x.is_finite()));
-        assert!(v.spacing.iter().all(|s| s.is_finite() && *s > 0.0));
-        let _ = loaded.default_window();
+        check(&loaded);
+        let before = loaded.volume.data.iter().map(|x| f64::from(*x)).sum::<f64>();
+        let shown = loaded.into_display();
+        check(&shown);
+        let after = shown.volume.data.iter().map(|x| f64::from(*x)).sum::<f64>();
+        // A permutation of the same samples: the same sum up to the order of additions.
+        assert!((before - after).abs() <= 1e-6 * before.abs().max(1.0) * shown.volume.data.len() as f64);
+        if let Some(frame) = &shown.meta.patient {
+            // Reordered onto the display axes without mirroring: the residual is a rotation.
+            let r = frame.display_from_world();
+            assert!((r.determinant() - 1.0).abs() < 1e-3, "{r}");
+        }
     }
+}
+
+fn check(loaded: &caustica::volume::Loaded) {
+    let v = &loaded.volume;
+    assert_eq!(v.data.len(), v.dims.iter().product::<usize>());
+    assert!(v.data.iter().all(|x| x.is_finite()));
+    assert!(v.spacing.iter().all(|s| s.is_finite() && *s > 0.0));
+    let _ = loaded.default_window();
 }
