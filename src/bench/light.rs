@@ -259,10 +259,7 @@ pub fn run(ctx: Arc<Context>, plan: &LightPlan, out: &Path) -> Result<LightRepor
         let mut prepared: Option<PreparedScene> = None;
         for (i, &(ds, d, k, depth, _, plane_r)) in planes.iter().enumerate() {
             // One prepared scene per sample distance, so that its textures stay on the device.
-            if prepared
-                .as_ref()
-                .map_or(true, |p| p.scene.quality.sample_distance != ds)
-            {
+            if prepared.as_ref().is_none_or(|p| p.scene.quality.sample_distance != ds) {
                 let mut scene = base.clone();
                 scene.quality.sample_distance = ds;
                 (variant.apply)(&mut scene);

@@ -279,7 +279,7 @@ impl VolumeMedium {
                     let lo = DVec3::new(x as f64, y as f64, z as f64) * cell;
                     let hi = lo + cell;
                     let same = self.grid.constant_over(lo, hi)
-                        && self.eta_grid.as_ref().map_or(true, |g| g.constant_over(lo, hi));
+                        && self.eta_grid.as_ref().is_none_or(|g| g.constant_over(lo, hi));
                     out.push(same);
                 }
             }

@@ -68,9 +68,9 @@ fn fine_cells(tf: &TransferFunctions) -> Vec<Cell> {
                 let c = cell_at(tf, x);
                 sum.tau_a += c.tau_a;
                 weight += c.tau_a;
-                for ch in 0..3 {
+                for (ch, p) in plain.iter_mut().enumerate() {
                     sum.color[ch] += c.tau_a * c.color[ch];
-                    plain[ch] += c.color[ch];
+                    *p += c.color[ch];
                     sum.tau_m[ch] += c.tau_m[ch];
                 }
             }
@@ -97,7 +97,8 @@ pub fn preintegrate(tf: &TransferFunctions, sample_distance: f32) -> Preintegrat
     use rayon::prelude::*;
     let n = TABLE_SIZE;
     let cells = fine_cells(tf);
-    let rows: Vec<(Vec<[f32; 4]>, Vec<[f32; 4]>)> = (0..n)
+    type Row = (Vec<[f32; 4]>, Vec<[f32; 4]>);
+    let rows: Vec<Row> = (0..n)
         .into_par_iter()
         .map(|b| {
             let mut particle = vec![[0.0f32; 4]; n];
