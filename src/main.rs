@@ -237,6 +237,14 @@ mod tests {
     use caustica::input::InputError;
     use caustica::render::RenderError;
 
+    /// Every command's options are consistent: no two share a name (a flattened option group
+    /// and a command's own option named alike would silently swallow one of them).
+    #[test]
+    fn the_command_line_definition_is_consistent() {
+        use clap::CommandFactory;
+        Cli::command().debug_assert();
+    }
+
     /// What `?` makes of an error is what the process exits with.
     fn fail(error: impl Classify + std::error::Error + Send + Sync + 'static) -> Result<()> {
         Err(error)?

@@ -30,8 +30,8 @@ pub use lighting::{
 };
 pub use prepared::{PrepareError, PreparedScene, VolumeInfo};
 pub use quality::{
-    Gradient, LightTransport, Precision, Quality, Toggle, BACKWARD_MAX_CONCENTRATION, MAX_BEAMS_PER_TEXEL,
-    MIN_BEAMS_PER_TEXEL,
+    Gradient, LightTransport, MultipleScattering, Precision, Quality, Toggle, BACKWARD_MAX_CONCENTRATION,
+    MAX_BEAMS_PER_TEXEL, MIN_BEAMS_PER_TEXEL,
 };
 pub use source::{TransferSource, VolumeSource};
 pub use view::{camera_position, light_direction, ViewSetup};
@@ -126,5 +126,54 @@ impl Scene {
             TransferSource::Inline(tf) => Ok(tf.clone()),
             TransferSource::File(p) => Ok(TransferFunctions::load(p)?),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn scene_files_carry_the_scattering_curves() {
+        let dir = std::env::temp_dir().join(format!("caustica-scene-scatter-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let inline = r#"
+volume = { kind = "builtin", name = "ball-lens", resolution = 32 }
+[transfer]
+opacity = [[0.0, 0.0], [1.0, 0.2]]
+albedo = [[0.0, 0.0], [0.5, 0.95]]
+anisotropy = [[0.0, 0.8]]
+"#;
+        let path = dir.join("inline.toml");
+        std::fs::write(&path, inline).unwrap();
+        let scene = Scene::load(&path).unwrap();
+        let tf = scene.transfer_functions().unwrap();
+        assert!(tf.scatters());
+        assert_eq!((tf.albedo_at(1.0), tf.anisotropy_at(0.3)), (0.95, 0.8));
+        let back: Scene = toml::from_str(&scene.to_toml()).unwrap();
+        assert_eq!(back, scene, "the curves survive writing the scene");
+        // A JSON file named by the scene brings them too; a g outside its range is refused.
+        let json = dir.join("milk.json");
+        std::fs::write(&json, tf.to_json()).unwrap();
+        std::fs::write(
+            &path,
+            "volume = { kind = \"builtin\", name = \"ball-lens\" }\ntransfer = \"milk.json\"\n",
+        )
+        .unwrap();
+        assert_eq!(Scene::load(&path).unwrap().transfer_functions().unwrap(), tf);
+        std::fs::write(&json, r#"{"opacity": [[0, 0.2]], "anisotropy": [[0, 1.0]]}"#).unwrap();
+        let err = anyhow_chain(&Scene::load(&path).unwrap_err());
+        assert!(err.contains("anisotropy point 0"), "{err}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    fn anyhow_chain(e: &dyn std::error::Error) -> String {
+        let mut s = e.to_string();
+        let mut source = e.source();
+        while let Some(c) = source {
+            s += &format!(": {c}");
+            source = c.source();
+        }
+        s
     }
 }

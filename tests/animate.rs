@@ -398,9 +398,9 @@ fn time_series_frames_hold_and_blend() {
     let mut args = vec![
         "animate",
         "series.toml",
-        "--series",
+        "--time-series",
         "0..2",
-        "--series-mode",
+        "--time-mode",
         "interpolate",
     ];
     args.extend_from_slice(&["--frames", "5", "--format", "exr", "-o", "f"]);
@@ -548,7 +548,7 @@ fn bad_shards_and_ranges_are_usage_errors() {
         (&["--range", "7"], "FIRST..LAST"),
         (&["--yaw", "10"], "two or more"),
         (&["--transfer-keys", "a.json"], "two or more"),
-        (&["--series", "all"], "time-series input"),
+        (&["--time-series", "all"], "time-series input"),
         (&["--fps", "0"], "frames per second"),
         (&["--frames", "0"], "--frames"),
     ];

@@ -106,3 +106,29 @@ fn the_default_job_writes_a_screenshot_without_a_display() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn scattering_curves_at_zero_render_todays_image_with_todays_work() {
+    // Albedo and anisotropy curves that are 0 everywhere are no scattering: the same
+    // features (no extra pass, buffer or variant) and the same bytes as without the curves.
+    let mut gpu = Gpu::new();
+    let mut scene = builtin("supernova").unwrap().scene;
+    if let VolumeSource::Builtin { resolution, .. } = &mut scene.volume {
+        *resolution = 32;
+    }
+    let plain = PreparedScene::load(&scene).unwrap();
+    let mut tf = plain.tf.clone();
+    assert!(tf.albedo.is_none() && tf.anisotropy.is_none());
+    tf.albedo = Some(caustica::transfer::Curve::constant(0.0));
+    tf.anisotropy = Some(caustica::transfer::Curve::constant(0.0));
+    assert!(!tf.scatters());
+    scene.transfer = caustica::scene::TransferSource::Inline(tf);
+    let zero = PreparedScene::load(&scene).unwrap();
+    assert_eq!(plain.features(), zero.features());
+    let req = RenderRequest::new(48, 48);
+    let (a, b) = (gpu.render(&plain, &req), gpu.render(&zero, &req));
+    assert!(
+        a.image.pixels.iter().zip(&b.image.pixels).all(|(x, y)| x == y),
+        "zero scattering changed the image"
+    );
+}

@@ -28,7 +28,22 @@ pub fn blend_transfer(a: &TransferFunctions, b: &TransferFunctions, w: f64) -> T
         medium: ColorRamp {
             points: blend_points(&a.medium.points, &b.medium.points, w),
         },
+        albedo: blend_optional(&a.albedo, &b.albedo, w),
+        anisotropy: blend_optional(&a.anisotropy, &b.anisotropy, w),
     }
+}
+
+/// An optional curve (albedo, anisotropy) blended as the others; a missing one is 0
+/// everywhere, and two missing ones stay missing.
+fn blend_optional(a: &Option<Curve>, b: &Option<Curve>, w: f64) -> Option<Curve> {
+    if a.is_none() && b.is_none() {
+        return None;
+    }
+    let zero = Curve::constant(0.0);
+    let (a, b) = (a.as_ref().unwrap_or(&zero), b.as_ref().unwrap_or(&zero));
+    Some(Curve {
+        points: blend_points(&a.points, &b.points, w),
+    })
 }
 
 fn blend_points<const N: usize>(a: &[[f32; N]], b: &[[f32; N]], w: f64) -> Vec<[f32; N]> {
@@ -114,6 +129,8 @@ mod tests {
             color: ColorRamp { points: color },
             eta: Curve::constant(1.0),
             medium: ColorRamp::constant([1.0; 3]),
+            albedo: None,
+            anisotropy: None,
         }
     }
 

@@ -3,24 +3,38 @@
 
 use std::path::Path;
 
-use crate::transfer::{TransferError, TransferFunctions, ETA_RANGE};
+use crate::transfer::{Curve, TransferError, TransferFunctions, ANISOTROPY_RANGE, ETA_RANGE};
 
-/// Which of the four functions an edit applies to.
+/// Which function an edit applies to: the four of every scene, and the two optional
+/// scattering curves (albedo, anisotropy), which stay absent until a point is edited.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Function {
     Opacity,
     Color,
     Eta,
     Medium,
+    Albedo,
+    Anisotropy,
 }
 
+/// What an absent scattering curve holds: 0 everywhere (no scattering, isotropic).
+const ABSENT: [[f32; 2]; 1] = [[0.0, 0.0]];
+
 impl Function {
-    pub const ALL: [Function; 4] = [Function::Opacity, Function::Color, Function::Eta, Function::Medium];
+    pub const ALL: [Function; 6] = [
+        Function::Opacity,
+        Function::Color,
+        Function::Eta,
+        Function::Medium,
+        Function::Albedo,
+        Function::Anisotropy,
+    ];
 
     /// The allowed range of the value channels.
     pub fn value_range(self) -> [f32; 2] {
         match self {
             Function::Eta => ETA_RANGE,
+            Function::Anisotropy => ANISOTROPY_RANGE,
             _ => [0.0, 1.0],
         }
     }
@@ -31,6 +45,8 @@ impl Function {
             Function::Color => "particle colour",
             Function::Eta => "refractive index",
             Function::Medium => "medium colour",
+            Function::Albedo => "scattering albedo",
+            Function::Anisotropy => "anisotropy g",
         }
     }
 
@@ -53,13 +69,30 @@ pub struct TfEditor {
     revision: u64,
 }
 
-/// A control point as the editor sees it: `x` and up to three value channels.
+/// A control point as the editor sees it: `x` and up to three value channels. An absent
+/// scattering curve comes into being (as its implicit constant 0) when it is edited.
 fn points_mut(tf: &mut TransferFunctions, f: Function) -> PointsMut<'_> {
+    let absent = || Curve {
+        points: ABSENT.to_vec(),
+    };
     match f {
         Function::Opacity => PointsMut::Curve(&mut tf.opacity.points),
         Function::Eta => PointsMut::Curve(&mut tf.eta.points),
         Function::Color => PointsMut::Ramp(&mut tf.color.points),
         Function::Medium => PointsMut::Ramp(&mut tf.medium.points),
+        Function::Albedo => PointsMut::Curve(&mut tf.albedo.get_or_insert_with(absent).points),
+        Function::Anisotropy => PointsMut::Curve(&mut tf.anisotropy.get_or_insert_with(absent).points),
+    }
+}
+
+/// The points of curve `f` (absent scattering curves: their implicit constant 0).
+fn curve_points(tf: &TransferFunctions, f: Function) -> &[[f32; 2]] {
+    match f {
+        Function::Opacity => &tf.opacity.points,
+        Function::Eta => &tf.eta.points,
+        Function::Albedo => tf.albedo.as_ref().map_or(&ABSENT[..], |c| &c.points[..]),
+        Function::Anisotropy => tf.anisotropy.as_ref().map_or(&ABSENT[..], |c| &c.points[..]),
+        Function::Color | Function::Medium => &[],
     }
 }
 
@@ -139,22 +172,19 @@ impl TfEditor {
 
     pub fn len(&self, f: Function) -> usize {
         match f {
-            Function::Opacity => self.tf.opacity.points.len(),
-            Function::Eta => self.tf.eta.points.len(),
             Function::Color => self.tf.color.points.len(),
             Function::Medium => self.tf.medium.points.len(),
+            _ => curve_points(&self.tf, f).len(),
         }
     }
 
     /// Point `i` of `f` as `[x, v0, v1, v2]` (curves repeat their one value).
     pub fn point(&self, f: Function, i: usize) -> Option<[f32; 4]> {
-        let p = match f {
-            Function::Opacity => self.tf.opacity.points.get(i).map(|p| [p[0], p[1], p[1], p[1]]),
-            Function::Eta => self.tf.eta.points.get(i).map(|p| [p[0], p[1], p[1], p[1]]),
+        match f {
             Function::Color => self.tf.color.points.get(i).copied(),
             Function::Medium => self.tf.medium.points.get(i).copied(),
-        };
-        p
+            _ => curve_points(&self.tf, f).get(i).map(|p| [p[0], p[1], p[1], p[1]]),
+        }
     }
 
     /// The value(s) of `f` at `x` (curves: one value in all three channels).
@@ -164,6 +194,8 @@ impl TfEditor {
             Function::Eta => [self.tf.eta.eval(x); 3],
             Function::Color => self.tf.color.eval(x),
             Function::Medium => self.tf.medium.eval(x),
+            Function::Albedo => [self.tf.albedo_at(x); 3],
+            Function::Anisotropy => [self.tf.anisotropy_at(x); 3],
         }
     }
 
@@ -403,6 +435,28 @@ mod tests {
         assert!(f.load(&path).is_err());
         assert_eq!(f.tf(), &before, "a bad file leaves the functions alone");
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn scattering_curves_appear_when_edited() {
+        let mut e = editor();
+        // Absent: one implicit point at 0, and nothing in the functions.
+        assert_eq!(e.len(Function::Albedo), 1);
+        assert_eq!(e.point(Function::Anisotropy, 0), Some([0.0; 4]));
+        assert!(e.tf().albedo.is_none() && e.tf().anisotropy.is_none());
+        assert!(!e.delete(Function::Albedo, 0), "the implicit point stays");
+        assert!(e.tf().albedo.is_none(), "a refused edit creates nothing");
+        let i = e.insert(Function::Albedo, 0.5, Some([0.9; 3]));
+        assert_eq!(i, 1);
+        assert!(e.tf().scatters());
+        assert!((e.eval(Function::Albedo, 0.75)[0] - 0.9).abs() < 1e-6);
+        // g is clamped to its range, not to [0, 1].
+        e.begin_edit();
+        e.move_point(Function::Anisotropy, 0, 0.0, Some(-5.0));
+        assert_eq!(e.point(Function::Anisotropy, 0).unwrap()[1], ANISOTROPY_RANGE[0]);
+        e.tf().validate().unwrap();
+        assert!(e.undo() && e.undo());
+        assert!(e.tf().albedo.is_none(), "undo removes the curve again");
     }
 
     #[test]

@@ -1,4 +1,4 @@
-//! egui widgets of the panel: the curve editor (opacity, η) over the histogram, the colour
+//! egui widgets of the panel: the curve editor (opacity, η, scattering) over the histogram, the colour
 //! ramp editor (particle, medium colour) and the light hemisphere.
 
 use egui::{Color32, Pos2, Rect, Sense, Stroke, StrokeKind, Ui, Vec2};
@@ -103,7 +103,7 @@ fn interact(
     changed
 }
 
-/// A curve editor (opacity or η) over an optional log-scale histogram (bars in [0, 1]).
+/// A curve editor (opacity, η, albedo, anisotropy) over an optional log-scale histogram (bars in [0, 1]).
 /// Returns the editor's rect.
 pub fn curve(ui: &mut Ui, tf: &mut TfEditor, sel: &mut PointSelection, f: Function, histogram: &[f32]) -> Rect {
     let size = Vec2::new(ui.available_width().max(120.0), 90.0);

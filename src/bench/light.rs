@@ -52,6 +52,10 @@ pub fn transport_variants() -> Vec<Variant> {
     use crate::scene::LightTransport;
     vec![
         Variant::new("beams", |s| s.quality.light_transport = LightTransport::Beams),
+        Variant::new("beams, 2² per texel", |s| {
+            s.quality.light_transport = LightTransport::Beams;
+            s.quality.beams_per_texel = 2.0;
+        }),
         Variant::new("backward", |s| s.quality.light_transport = LightTransport::Backward),
     ]
 }
@@ -131,6 +135,8 @@ pub fn ball_lens(radius: f64) -> Result<(Volume, TransferFunctions, f64), Volume
             points: vec![[0.0, 1.0], [0.5, BALL_ETA]],
         },
         medium: ColorRamp::constant([1.0; 3]),
+        albedo: None,
+        anisotropy: None,
     };
     Ok((Volume::new(dims, [1.0; 3], data)?, tf, centre_z))
 }
@@ -255,7 +261,16 @@ pub fn run(ctx: Arc<Context>, plan: &LightPlan, out: &Path) -> Result<LightRepor
     let centre = DVec2::splat((size as f64 - 1.0) / 2.0);
     let mut renderer = Renderer::new(ctx)?;
     let mut rows = Vec::new();
+    // The picture: the exact light and each variant's at the first sample distance.
+    let first_ds = plan.sample_distances[0];
+    let mut picture: Vec<Vec<ScalarImage>> = vec![planes
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| p.0 == first_ds)
+        .map(|(i, _)| exact.planes[i].channel(1))
+        .collect()];
     for variant in &plan.variants {
+        picture.push(Vec::new());
         let mut prepared: Option<PreparedScene> = None;
         for (i, &(ds, d, k, depth, _, plane_r)) in planes.iter().enumerate() {
             // One prepared scene per sample distance, so that its textures stay on the device.
@@ -283,6 +298,11 @@ pub fn run(ctx: Arc<Context>, plan: &LightPlan, out: &Path) -> Result<LightRepor
             truth.data.iter_mut().for_each(|v| *v *= light);
             let region = Region::square(&truth, centre, 1.5 * plan.radius / texel);
             let r = plan.radius / texel;
+            if ds == first_ds {
+                if let Some(row) = picture.last_mut() {
+                    row.push(gpu.clone());
+                }
+            }
             let ratio = |a: f64, b: f64| if b != 0.0 { a / b } else { f64::NAN };
             rows.push(LightRow {
                 variant: variant.label.clone(),
@@ -309,6 +329,8 @@ pub fn run(ctx: Arc<Context>, plan: &LightPlan, out: &Path) -> Result<LightRepor
     }
     let markdown = out.join("light.md");
     let csv = out.join("light.csv");
+    let png = out.join("light.png");
+    write_picture(&png, &picture).map_err(write_err(&png))?;
     write_markdown(&markdown, &rows, plan, &renderer, reference_seconds, texel).map_err(write_err(&markdown))?;
     write_csv(&csv, &rows).map_err(write_err(&csv))?;
     Ok(LightReport {
@@ -342,6 +364,22 @@ fn write_markdown(
         plan.reference.step_voxels,
         plan.frames
     );
+    let _ = writeln!(
+        s,
+        "`light.png`: the light on the planes at Δs = {}, one column per plane (nearest to {}), rows: the exact \
+         light, then {}; each column scaled to the exact light's brightest texel, square-root tone.\n",
+        plan.sample_distances.first().copied().unwrap_or(1.0),
+        plan.depths
+            .iter()
+            .map(|d| format!("{d} R"))
+            .collect::<Vec<_>>()
+            .join(", "),
+        plan.variants
+            .iter()
+            .map(|v| v.label.as_str())
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
     s.push_str("| transport | Δs | plane (R) | rel. L1 | brightest GPU | brightest exact | power r < R | total power | azimuthal GPU / exact | ms per plane |\n");
     s.push_str("|---|---|---|---|---|---|---|---|---|---|\n");
     for r in rows {
@@ -362,6 +400,37 @@ fn write_markdown(
         );
     }
     std::fs::write(path, s).map_err(|e| e.to_string())
+}
+
+/// The planes side by side: one row per image set (the exact light first, then each variant),
+/// one column per receiver plane, each column scaled to the exact light's brightest texel and
+/// shown as its square root (so that the dim disc behind the focus stays visible), each texel
+/// drawn as 3 × 3 pixels with a 4-pixel gap.
+fn write_picture(path: &Path, rows: &[Vec<ScalarImage>]) -> Result<(), String> {
+    const ZOOM: usize = 3;
+    const GAP: usize = 4;
+    let Some(first) = rows.first().and_then(|r| r.first()) else {
+        return Ok(());
+    };
+    let (w, h) = (first.width, first.height);
+    let columns = rows.iter().map(Vec::len).max().unwrap_or(0);
+    let width = columns * (w * ZOOM + GAP) + GAP;
+    let height = rows.len() * (h * ZOOM + GAP) + GAP;
+    let mut img = image::GrayImage::from_pixel(width as u32, height as u32, image::Luma([40]));
+    for (ri, row) in rows.iter().enumerate() {
+        for (ci, plane) in row.iter().enumerate() {
+            let scale = rows[0].get(ci).map_or(1.0, |e| measure::peak(e).value.max(1e-12));
+            for y in 0..h * ZOOM {
+                for x in 0..w * ZOOM {
+                    let v = (plane.at(x / ZOOM, y / ZOOM) / scale).clamp(0.0, 1.0).sqrt();
+                    let px = (GAP + ci * (w * ZOOM + GAP) + x) as u32;
+                    let py = (GAP + ri * (h * ZOOM + GAP) + y) as u32;
+                    img.put_pixel(px, py, image::Luma([(v * 255.0).round() as u8]));
+                }
+            }
+        }
+    }
+    img.save(path).map_err(|e| e.to_string())
 }
 
 fn write_csv(path: &Path, rows: &[LightRow]) -> Result<(), String> {

@@ -9,6 +9,7 @@ pub mod light;
 pub mod metrics;
 pub mod plot;
 mod report;
+pub mod scatter;
 pub mod steps;
 
 use std::io::IsTerminal;

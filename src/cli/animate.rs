@@ -80,7 +80,7 @@ pub struct AnimateArgs {
     /// Write the animation (scene and tracks, TOML) to this file; without -o nothing is rendered.
     #[arg(long, value_name = "FILE.toml")]
     pub save_animation: Option<PathBuf>,
-    /// Number of frames [default: 60, or the frames of --series].
+    /// Number of frames [default: 60, or the frames of --time-series].
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     pub frames: Option<u32>,
     /// Frames per second of the MP4 and of the animation file [default: 30].
@@ -119,10 +119,10 @@ pub struct AnimateArgs {
     pub clip_normal: Option<[f32; 3]>,
     /// Time series: step through its frames, `all` or FIRST..LAST (both included).
     #[arg(long, value_parser = parse_series)]
-    pub series: Option<SeriesRange>,
+    pub time_series: Option<SeriesRange>,
     /// Time series between its frames: hold the nearest frame, or interpolate two.
     #[arg(long, value_enum, default_value_t = TimeMode::Hold)]
-    pub series_mode: TimeMode,
+    pub time_mode: TimeMode,
     /// Transfer-function keys: two or more transfer-function or scene files, comma separated,
     /// spread evenly over the animation and interpolated point by point.
     #[arg(long, value_delimiter = ',')]
@@ -153,7 +153,7 @@ impl AnimateArgs {
             (self.light_azimuth.is_some(), "--light-azimuth"),
             (self.clip.is_some(), "--clip"),
             (self.clip_normal.is_some(), "--clip-normal"),
-            (self.series.is_some(), "--series"),
+            (self.time_series.is_some(), "--time-series"),
             (!self.transfer_keys.is_empty(), "--transfer-keys"),
             (self.input.transfer.is_some(), "--transfer"),
             (self.input.window.is_some(), "--window"),
@@ -238,12 +238,12 @@ impl AnimateArgs {
             clip.normal = normal;
         }
         let mut frames = 60;
-        if let Some(range) = self.series {
+        if let Some(range) = self.time_series {
             let len = match scene.volume.series()? {
                 Some(s) => s.len() as u32,
                 None => {
                     return Err(AnimateError::Usage(
-                        "--series needs a time-series input (a quoted pattern such as 'sim/t*.nrrd', or a scene with kind = \"series\")".into(),
+                        "--time-series needs a time-series input (a quoted pattern such as 'sim/t*.nrrd', or a scene with kind = \"series\")".into(),
                     ))
                 }
             };
@@ -252,13 +252,13 @@ impl AnimateArgs {
                 SeriesRange::Frames(a, b) if b < len => (a, b),
                 SeriesRange::Frames(a, b) => {
                     return Err(AnimateError::Usage(format!(
-                        "--series {a}..{b}: the series has {len} frames (0..{})",
+                        "--time-series {a}..{b}: the series has {len} frames (0..{})",
                         len - 1
                     )))
                 }
             };
             tracks.time.frame = vec![[0.0, a as f64], [1.0, b as f64]];
-            tracks.time.mode = self.series_mode;
+            tracks.time.mode = self.time_mode;
             frames = b - a + 1;
         }
         match self.transfer_keys.len() {

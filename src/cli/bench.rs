@@ -66,6 +66,11 @@ pub struct BenchArgs {
     /// With --steps: scene files measured besides the built-in scenes (GPU only).
     #[arg(long = "scene-file")]
     scene_files: Vec<PathBuf>,
+    /// Instead of the sweep, the beam-spread table: the Monte Carlo reference's spread of a
+    /// pencil beam in Premoze et al.'s Fig. 4 medium against their Eq. 1 and 18, and against
+    /// the exact moments; writes scatter.md; no GPU.
+    #[arg(long)]
+    scatter: bool,
 }
 
 pub fn bench(args: &BenchArgs) -> Result<()> {
@@ -93,6 +98,15 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
         plan.resolution = r;
     }
     plan.highlights = !args.no_highlights;
+    if args.scatter {
+        std::fs::create_dir_all(&args.out)
+            .with_context(|| format!("creating {}", args.out.display()))
+            .map_err(input)?;
+        let photons = if args.quick { 20_000 } else { 200_000 };
+        print!("{}", bench::scatter::run(photons, &args.out)?);
+        eprintln!("wrote {}", args.out.join("scatter.md").display());
+        return Ok(());
+    }
     if args.light && args.convergence {
         return light_convergence(args);
     }
@@ -161,7 +175,7 @@ fn light_convergence(args: &BenchArgs) -> Result<()> {
         }
         plan.size = size;
     }
-    let runs: &[(u32, f64)] = &[(2, 0.25), (4, 0.25), (8, 0.25), (8, 0.5), (8, 0.125)];
+    let runs: &[(u32, f64)] = &[(1, 0.25), (2, 0.25), (4, 0.25), (8, 0.25), (8, 0.5), (8, 0.125)];
     let truth = if args.quick { (16, 0.125) } else { (16, 0.0625) };
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))

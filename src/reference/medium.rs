@@ -263,6 +263,27 @@ impl VolumeMedium {
         interpolate(&self.tf.eta.points, v, 1)
     }
 
+    /// Single-scattering albedo and Henyey–Greenstein g at a world point (0 and 0 without
+    /// the transfer functions' scattering curves).
+    pub fn scattering(&self, p: DVec3) -> (f64, f64) {
+        let v = self.value(p);
+        let curve = |c: &Option<crate::transfer::Curve>| c.as_ref().map_or(0.0, |c| interpolate(&c.points, v, 1));
+        (curve(&self.tf.albedo), curve(&self.tf.anisotropy))
+    }
+
+    /// Upper bounds of the optical depths per unit length anywhere in the medium: of the
+    /// particles, and of the medium per channel. Values interpolate linearly and the transfer
+    /// functions are piecewise linear, so the extremes are at control points.
+    pub fn max_optical_depths(&self) -> (f64, [f64; 3]) {
+        let per_length = 1.0 / self.voxel_length;
+        let max_alpha = self.tf.opacity.points.iter().map(|p| p[1] as f64).fold(0.0, f64::max);
+        let min_medium = |k: usize| self.tf.medium.points.iter().map(|p| p[k] as f64).fold(1.0, f64::min);
+        (
+            depth_per_voxel(1.0 - max_alpha) * per_length,
+            [1, 2, 3].map(|k| depth_per_voxel(min_medium(k)) * per_length),
+        )
+    }
+
     fn clipped(&self, p: DVec3) -> bool {
         self.clip.is_some_and(|(n, offset)| n.dot(p) > offset)
     }

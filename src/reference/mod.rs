@@ -9,6 +9,9 @@
 //!   from ray density), and view rays composite with the Oddy–Willis model.
 //! - [`plane_light`]: the exact irradiance of the light on planes of constant view depth (what
 //!   the GPU's light buffer holds at a plane), by the same forward rays.
+//! - [`scatter`]: Monte Carlo multiple scattering (delta tracking, Henyey–Greenstein
+//!   sampling) through a scattering medium: where the light of a beam goes and how wide it
+//!   spreads.
 //! - [`measure`]: the comparisons tests and the bench make between images of light.
 
 // Per-channel loops index several [f64; 3] arrays at once; iterators would hide that.
@@ -23,6 +26,9 @@ pub mod plane_light;
 #[cfg(test)]
 mod plane_tests;
 pub mod rk4;
+pub mod scatter;
+#[cfg(test)]
+mod scatter_tests;
 #[cfg(test)]
 mod scene_tests;
 pub mod shading;

@@ -67,6 +67,8 @@ pub(super) fn tf(eta: Vec<[f32; 2]>, opacity: Vec<[f32; 2]>) -> TransferFunction
         color: ColorRamp::constant([1.0; 3]),
         eta: Curve { points: eta },
         medium: ColorRamp::constant([1.0; 3]),
+        albedo: None,
+        anisotropy: None,
     }
 }
 

@@ -197,6 +197,8 @@ pub(super) fn ball_volume(size: usize, r: f64, n: f32) -> (Volume, TransferFunct
             points: vec![[0.0, 1.0], [0.5, n]],
         },
         medium: ColorRamp::constant([1.0; 3]),
+        albedo: None,
+        anisotropy: None,
     };
     (Volume::new([size; 3], [1.0; 3], data).unwrap(), tf)
 }

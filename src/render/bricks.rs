@@ -87,6 +87,8 @@ mod tests {
             color: ColorRamp::constant([1.0; 3]),
             eta: Curve::constant(1.0),
             medium: ColorRamp { points: medium },
+            albedo: None,
+            anisotropy: None,
         }
     }
 

@@ -106,6 +106,41 @@ impl LightTransport {
     }
 }
 
+/// How light that the particles scatter (transfer functions with an albedo) travels on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum MultipleScattering {
+    /// Scattered light is lost: the particles show what they scatter toward the viewer once.
+    #[default]
+    None,
+    /// Premoze et al. 2004: the light scattered out of each beam spreads around it by the
+    /// width its path through the medium gives. Not available in the renderer yet.
+    Spread,
+    /// Bernabei et al.: lattice-Boltzmann diffusion (six directions) of the light the
+    /// particles scatter, in a coarser light volume. Not available in the renderer yet.
+    Lbm,
+}
+
+impl MultipleScattering {
+    pub fn name(self) -> &'static str {
+        match self {
+            MultipleScattering::None => "none",
+            MultipleScattering::Spread => "spread",
+            MultipleScattering::Lbm => "lbm",
+        }
+    }
+
+    pub fn is_none(&self) -> bool {
+        *self == MultipleScattering::None
+    }
+
+    /// Whether the renderer implements this mode (the CPU reference's Monte Carlo transport,
+    /// `reference::scatter`, is what the other modes will be measured against).
+    pub fn is_available(self) -> bool {
+        self == MultipleScattering::None
+    }
+}
+
 /// Default power budget of the backward transport: it cannot spread light again behind a
 /// focus, so the budget is what bounds it there (see README, "Numerical safeguards").
 pub const BACKWARD_MAX_CONCENTRATION: f32 = 64.0;
@@ -145,6 +180,10 @@ pub struct Quality {
     pub beams_per_texel: f32,
     /// Reconstruction of ∇η.
     pub gradient: Gradient,
+    /// How light scattered by the particles travels on (see [`MultipleScattering`]); left
+    /// out of written scenes when `none`, so scenes without scattering read as before.
+    #[serde(skip_serializing_if = "MultipleScattering::is_none")]
+    pub multiple_scattering: MultipleScattering,
 }
 
 impl Default for Quality {
@@ -162,6 +201,7 @@ impl Default for Quality {
             light_transport: LightTransport::Beams,
             beams_per_texel: 1.0,
             gradient: Gradient::Central,
+            multiple_scattering: MultipleScattering::None,
         }
     }
 }
@@ -173,5 +213,24 @@ impl Quality {
             LightTransport::Beams => super::MAX_CONCENTRATION,
             LightTransport::Backward => BACKWARD_MAX_CONCENTRATION,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn multiple_scattering_parses_from_the_scene_file() {
+        assert_eq!(Quality::default().multiple_scattering, MultipleScattering::None);
+        for m in [
+            MultipleScattering::None,
+            MultipleScattering::Spread,
+            MultipleScattering::Lbm,
+        ] {
+            let parsed: Quality = toml::from_str(&format!("multiple_scattering = \"{}\"", m.name())).unwrap();
+            assert_eq!(parsed.multiple_scattering, m);
+        }
+        assert!(toml::from_str::<Quality>("multiple_scattering = \"diffusion\"").is_err());
     }
 }

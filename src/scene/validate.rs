@@ -34,6 +34,12 @@ impl Scene {
                 q.beams_per_texel
             ));
         }
+        if !q.multiple_scattering.is_available() {
+            return bad(format!(
+                "quality.multiple_scattering = \"{}\" is not available in the renderer yet; use \"none\"",
+                q.multiple_scattering.name()
+            ));
+        }
         if !(0.0..=1.0).contains(&q.termination_opacity) {
             return bad("quality.termination_opacity must be in [0, 1]".into());
         }
@@ -163,8 +169,15 @@ mod tests {
         let mut s = base.clone();
         s.light.intensity = 2.0 * MAX_LIGHT_RADIANCE;
         assert!(s.validate().is_err(), "a light beyond the 16-bit light buffers");
-        let mut s = base;
+        let mut s = base.clone();
         s.shading.roughness = 1.5;
         assert!(s.validate().is_err());
+        let mut s = base;
+        s.quality.multiple_scattering = super::super::MultipleScattering::Spread;
+        let err = s.validate().unwrap_err().to_string();
+        assert!(
+            err.contains("multiple_scattering") && err.contains("not available"),
+            "{err}"
+        );
     }
 }

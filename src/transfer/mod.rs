@@ -13,11 +13,24 @@
 //! Opacity is the fraction of light a one-voxel-long segment absorbs or reflects; the medium
 //! colour is the fraction of each channel a one-voxel-long segment lets through. Both are
 //! rescaled to the actual segment length by pre-integration ([`preintegrate`]).
+//!
+//! Two optional curves make the particles scatter (multiple scattering, see [`scattering`]):
+//! ```json
+//!   "albedo":     [[0.0, 0.0], [0.4, 0.95]],   // [x, ω] single-scattering albedo
+//!   "anisotropy": [[0.0, 0.8]]                 // [x, g] Henyey–Greenstein mean cosine
+//! ```
+//! Opacity stays the extinction: of the light the particles remove, the fraction ω is
+//! scattered on (and keeps travelling, spreading through the medium) and 1 − ω is absorbed.
+//! The particle colour stays what the particles send toward the viewer. g shapes both: the
+//! phase function of that last scattering toward the viewer, and how far forward the
+//! scattered light keeps going. Without the two curves (or with ω = 0 and g = 0 everywhere)
+//! images are exactly those of a medium that does not scatter.
 
 mod auto;
 mod curve;
 pub mod import;
 mod preintegrate;
+pub mod scattering;
 
 pub use auto::default_for;
 pub use curve::{ColorRamp, Curve};
@@ -31,6 +44,11 @@ use serde::{Deserialize, Serialize};
 /// Refractive indices outside this range are rejected: below 1 nothing physical is modelled
 /// here, and above 4 (germanium in the infrared) no material of interest exists.
 pub const ETA_RANGE: [f32; 2] = [1.0, 4.0];
+
+/// Range of the Henyey–Greenstein mean cosine g: beyond ±0.99 the phase function's peak
+/// ((1 + |g|)/(1 − |g|)² times the isotropic value) exceeds 4·10⁴ and no sampling of it
+/// resolves the lobe.
+pub const ANISOTROPY_RANGE: [f32; 2] = [-0.99, 0.99];
 
 #[derive(Debug, thiserror::Error)]
 pub enum TransferError {
@@ -77,6 +95,13 @@ pub struct TransferFunctions {
     pub eta: Curve,
     #[serde(default = "default_white")]
     pub medium: ColorRamp,
+    /// Single-scattering albedo ω in [0, 1]: the fraction of the light the particles remove
+    /// that they scatter on. Absent: 0 (nothing scatters on).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub albedo: Option<Curve>,
+    /// Henyey–Greenstein mean cosine g in [`ANISOTROPY_RANGE`]. Absent: 0 (isotropic).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub anisotropy: Option<Curve>,
 }
 
 impl Default for TransferFunctions {
@@ -90,6 +115,8 @@ impl Default for TransferFunctions {
             color: default_white(),
             eta: default_eta(),
             medium: default_white(),
+            albedo: None,
+            anisotropy: None,
         }
     }
 }
@@ -123,7 +150,41 @@ impl TransferFunctions {
         self.eta.validate("eta", ETA_RANGE)?;
         self.color.validate("color")?;
         self.medium.validate("medium")?;
+        if let Some(a) = &self.albedo {
+            a.validate("albedo", [0.0, 1.0])?;
+        }
+        if let Some(g) = &self.anisotropy {
+            g.validate("anisotropy", ANISOTROPY_RANGE)?;
+        }
         Ok(())
+    }
+
+    /// Single-scattering albedo at `x` (0 without an albedo curve).
+    pub fn albedo_at(&self, x: f32) -> f32 {
+        self.albedo.as_ref().map_or(0.0, |c| c.eval(x))
+    }
+
+    /// Henyey–Greenstein g at `x` (0 without an anisotropy curve).
+    pub fn anisotropy_at(&self, x: f32) -> f32 {
+        self.anisotropy.as_ref().map_or(0.0, |c| c.eval(x))
+    }
+
+    /// True when some data value scatters light on (ω > 0 somewhere, and there are particles
+    /// to scatter: opacity > 0 somewhere).
+    pub fn scatters(&self) -> bool {
+        let particles = self.opacity.points.iter().any(|p| p[1] > 0.0);
+        particles
+            && self
+                .albedo
+                .as_ref()
+                .is_some_and(|a| a.points.iter().any(|p| p[1] > 0.0))
+    }
+
+    /// True when the phase function is not isotropic somewhere (g ≠ 0).
+    pub fn is_anisotropic(&self) -> bool {
+        self.anisotropy
+            .as_ref()
+            .is_some_and(|g| g.points.iter().any(|p| p[1] != 0.0))
     }
 
     /// True when η is the same everywhere: no refraction work is needed.
@@ -162,6 +223,12 @@ mod tests {
             (r#"{"opacity": [[0,0]], "color": [[0, 1, 2, 1]]}"#, "color point 0"),
             (r#"{"opacity": [[0,0]], "medium": [[1.5, 1, 1, 1]]}"#, "outside [0, 1]"),
             (r#"{"opacity": [[0,0]], "colour": []}"#, "unknown field"),
+            (r#"{"opacity": [[0,0]], "albedo": [[0, 1.2]]}"#, "albedo point 0"),
+            (r#"{"opacity": [[0,0]], "albedo": []}"#, "albedo has no control points"),
+            (
+                r#"{"opacity": [[0,0]], "anisotropy": [[0, 0.5], [1, -1]]}"#,
+                "anisotropy point 1",
+            ),
             (r#"{"opacity": "x"}"#, "invalid type"),
         ];
         for (json, expected) in cases {
@@ -170,6 +237,29 @@ mod tests {
                 .to_string();
             assert!(err.contains(expected), "{json}: '{err}' should mention '{expected}'");
         }
+    }
+
+    #[test]
+    fn scattering_curves_are_optional_and_round_trip() {
+        let plain = TransferFunctions::from_json(r#"{"opacity": [[0,0],[1,1]]}"#, Path::new("t.json")).unwrap();
+        assert!(!plain.scatters() && !plain.is_anisotropic());
+        assert_eq!((plain.albedo_at(0.5), plain.anisotropy_at(0.5)), (0.0, 0.0));
+        assert!(!plain.to_json().contains("albedo"), "absent curves are not written");
+        let json = r#"{"opacity": [[0,0],[1,1]], "albedo": [[0,0],[1,0.9]], "anisotropy": [[0,0.8]]}"#;
+        let tf = TransferFunctions::from_json(json, Path::new("t.json")).unwrap();
+        assert!(tf.scatters() && tf.is_anisotropic());
+        assert!((tf.albedo_at(0.5) - 0.45).abs() < 1e-6);
+        assert_eq!(tf.anisotropy_at(0.3), 0.8);
+        let back = TransferFunctions::from_json(&tf.to_json(), Path::new("t.json")).unwrap();
+        assert_eq!(back, tf);
+        // Zero albedo everywhere, or no particles to scatter on, is no scattering.
+        let zero = r#"{"opacity": [[0,0],[1,1]], "albedo": [[0,0]], "anisotropy": [[0,0]]}"#;
+        let zero = TransferFunctions::from_json(zero, Path::new("t.json")).unwrap();
+        assert!(!zero.scatters() && !zero.is_anisotropic());
+        let clear = r#"{"opacity": [[0,0]], "albedo": [[0,1]]}"#;
+        assert!(!TransferFunctions::from_json(clear, Path::new("t.json"))
+            .unwrap()
+            .scatters());
     }
 
     #[test]

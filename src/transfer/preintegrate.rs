@@ -195,6 +195,8 @@ mod tests {
             color: ColorRamp::constant([1.0, 0.5, 0.25]),
             eta: Curve::constant(1.0),
             medium: ColorRamp::constant([medium; 3]),
+            albedo: None,
+            anisotropy: None,
         }
     }
 

@@ -63,6 +63,8 @@ pub fn plain_tf(opacity: Vec<[f32; 2]>, color: Vec<[f32; 4]>) -> TransferFunctio
         color: ColorRamp { points: color },
         eta: Curve::constant(1.0),
         medium: ColorRamp::constant([1.0; 3]),
+        albedo: None,
+        anisotropy: None,
     }
 }
 

@@ -156,7 +156,9 @@ impl ViewState {
             ui.label(f.label());
             let rect = match f {
                 Function::Opacity => widgets::curve(ui, &mut self.tf, sel, f, &self.histogram),
-                Function::Eta => widgets::curve(ui, &mut self.tf, sel, f, &[]),
+                Function::Eta | Function::Albedo | Function::Anisotropy => {
+                    widgets::curve(ui, &mut self.tf, sel, f, &[])
+                }
                 _ => widgets::ramp(ui, &mut self.tf, sel, f),
             };
             self.rects.insert(f.label(), rect);

@@ -1,0 +1,510 @@
+//! The light transport against exact traces and analytic optics: a glass ball lens behind its
+//! focus, a cylinder lens's focal line, Snell's law at a volume filled with glass to its edge
+//! (light and view rays), soft light as a cone source, and occluders outside the frame.
+//!
+//! The exact light is `reference::plane_light`: rays traced through the same voxelised index
+//! field (RK4) and binned as irradiance on the GPU's own texels, independent of the renderer.
+
+mod common;
+
+use caustica::bench::light::{ball_lens, ball_scene};
+use caustica::reference::measure::{self, Region, ScalarImage};
+use caustica::reference::plane_light::{self, nearest_sweep_plane, PlaneSettings};
+use caustica::render::{safeguards, DebugView, PreparedScene, RenderRequest};
+use caustica::scene::{Scene, ViewSetup};
+use caustica::transfer::{ColorRamp, Curve, TransferFunctions};
+use caustica::volume::Volume;
+use common::*;
+use glam::{DVec2, Vec3};
+
+/// Ball radius in voxels; the frame spans 4 R on `SIZE` texels, so a texel is one voxel.
+const R: f64 = 16.0;
+const SIZE: u32 = 64;
+/// Receiver planes behind the ball's centre, in R.
+const DEPTHS: [f64; 5] = [1.1, 1.25, 1.5, 2.0, 3.0];
+
+fn centre() -> DVec2 {
+    DVec2::splat((SIZE as f64 - 1.0) / 2.0)
+}
+
+/// The light arriving at relative depth `depth` (green channel).
+fn light(gpu: &mut Gpu, p: &PreparedScene, size: u32, depth: f32) -> ScalarImage {
+    ScalarImage::from_image(&gpu.debug(p, size, DebugView::Light, depth).image, 1)
+}
+
+/// View depth of a world point.
+fn view_z(view: &ViewSetup, world: Vec3) -> f64 {
+    view.view_from_world.transform_point3(world).z as f64
+}
+
+struct Lens {
+    p: PreparedScene,
+    view: ViewSetup,
+    /// View depth of the lens's centre.
+    centre_z: f64,
+}
+
+fn ball() -> Lens {
+    let (volume, tf, centre_world) = ball_lens(R).expect("ball volume");
+    let scene = ball_scene(&volume, &tf, R);
+    lens(scene, volume, tf, centre_world)
+}
+
+fn lens(scene: Scene, volume: Volume, tf: TransferFunctions, centre_world: f64) -> Lens {
+    let view = ViewSetup::new(&scene, volume.dims, volume.spacing, SIZE, SIZE).expect("view");
+    let centre_z = view_z(&view, Vec3::new(0.0, 0.0, centre_world as f32));
+    Lens {
+        p: prepared(scene, volume, tf),
+        view,
+        centre_z,
+    }
+}
+
+/// Power in `sectors` equal sectors of the annulus between `r0` and `r1` texels: rings (the
+/// facets of a voxelised sphere) cancel, a star or a grid does not.
+fn sector_variation(img: &ScalarImage, r0: f64, r1: f64, sectors: usize) -> f64 {
+    let mut sums = vec![0.0; sectors];
+    let c = centre();
+    for y in 0..img.height {
+        for x in 0..img.width {
+            let d = DVec2::new(x as f64, y as f64) - c;
+            let r = d.length();
+            if r < r0 || r >= r1 {
+                continue;
+            }
+            let phi = d.y.atan2(d.x).rem_euclid(std::f64::consts::TAU);
+            sums[((phi / std::f64::consts::TAU * sectors as f64) as usize).min(sectors - 1)] += img.at(x, y);
+        }
+    }
+    let mean = sums.iter().sum::<f64>() / sectors as f64;
+    sums.iter().map(|s| (s - mean).abs()).fold(0.0, f64::max) / mean
+}
+
+#[test]
+fn ball_lens_light_matches_the_exact_trace_through_and_behind_the_focus() {
+    let mut gpu = Gpu::new();
+    let lens = ball();
+    let planes: Vec<(u32, f32, f64)> = DEPTHS
+        .iter()
+        .map(|m| nearest_sweep_plane(&lens.view, lens.centre_z + m * R))
+        .collect();
+    let zs: Vec<f64> = planes.iter().map(|p| p.2).collect();
+    let exact = plane_light::trace_scene(&lens.p, SIZE, SIZE, &zs, &PlaneSettings::default()).expect("exact trace");
+    let r = R; // texels
+    let mut report = Vec::new();
+    for (i, &(_, depth, z)) in planes.iter().enumerate() {
+        let gpu_light = light(&mut gpu, &lens.p, SIZE, depth);
+        let truth = exact.planes[i].channel(1);
+        let region = Region::square(&truth, centre(), 1.5 * r);
+        let l1 = measure::relative_l1(&gpu_light, &truth, region).expect("light on the plane");
+        let inside = measure::power_inside(&gpu_light, centre(), r) / measure::power_inside(&truth, centre(), r);
+        let total = measure::total(&gpu_light, Region::all(&gpu_light)) / measure::total(&truth, Region::all(&truth));
+        let sectors = (
+            sector_variation(&gpu_light, 0.25 * r, 0.75 * r, 16),
+            sector_variation(&truth, 0.25 * r, 0.75 * r, 16),
+        );
+        let at = (z - lens.centre_z) / R;
+        // Measured on lavapipe, one beam per texel, Δs = 1: L1 0.09–0.18 (the paper's backward
+        // scheme 0.5–1.9 at these planes), power inside R 0.94–1.04, total power within 2.1%,
+        // the sector variation (16 sectors of the annulus R/4..3R/4) of the exact light
+        // 0.13–0.24 from the voxelised sphere's facets, of the GPU's 0.13–0.43. The residual is
+        // sampling: the exact trace itself, run with one ray per texel edge as the beams are,
+        // is 0.11–0.22 from its converged result on these planes (`bench --light
+        // --convergence`). Bounds: L1 0.2; power inside R within 7%; total within 3% (a
+        // transport that loses or gains light behind a focus, as the paper's does by
+        // 1.4–9.8×, fails all three); past 1.5 R, where the light spreads again, no more
+        // angular structure than the exact light's + 0.06 (a square star reads 0.3 and more).
+        assert!(l1 < 0.2, "L1 {l1} at {at:.2} R");
+        assert!((inside - 1.0).abs() < 0.07, "power inside R: {inside} at {at:.2} R");
+        assert!((total - 1.0).abs() < 0.03, "total power: {total} at {at:.2} R");
+        if DEPTHS[i] >= 1.5 {
+            assert!(
+                sectors.0 < sectors.1 + 0.06,
+                "angular structure {sectors:?} at {at:.2} R"
+            );
+        }
+        report.push(format!(
+            "{:.2} R: L1 {l1:.3}, power r < R {inside:.3}, total {total:.4}, sectors GPU {:.3} exact {:.3}",
+            (z - lens.centre_z) / R,
+            sectors.0,
+            sectors.1
+        ));
+        // Safeguards stay safeguards: switching off the budget, the ratio clamp and the
+        // saturation of the accumulators changes nothing here.
+        let mut req = RenderRequest::new(SIZE, SIZE);
+        req.debug_view = DebugView::Light;
+        req.debug_depth = depth;
+        req.safeguards_off =
+            safeguards::CONCENTRATION | safeguards::INTENSITY_RATIO | safeguards::SATURATION | safeguards::FOLD;
+        let unguarded = ScalarImage::from_image(&gpu.render(&lens.p, &req).image, 1);
+        assert_eq!(
+            unguarded.data, gpu_light.data,
+            "a safeguard acted at {:.2} R",
+            DEPTHS[i]
+        );
+    }
+    eprintln!("ball lens against the exact trace:\n  {}", report.join("\n  "));
+}
+
+#[test]
+fn ball_lens_on_axis_maximum_lies_where_the_exact_trace_has_it() {
+    let mut gpu = Gpu::new();
+    let lens = ball();
+    let first = nearest_sweep_plane(&lens.view, lens.centre_z + R).0;
+    let last = nearest_sweep_plane(&lens.view, lens.centre_z + 2.0 * R).0;
+    let planes: Vec<(u32, f32, f64)> = (first..=last)
+        .map(|k| {
+            let z = lens.view.z_first as f64 + k as f64 * lens.view.step as f64;
+            nearest_sweep_plane(&lens.view, z)
+        })
+        .collect();
+    let zs: Vec<f64> = planes.iter().map(|p| p.2).collect();
+    let exact = plane_light::trace_scene(&lens.p, SIZE, SIZE, &zs, &PlaneSettings::default()).expect("exact trace");
+    // The on-axis value: the four texels around the axis.
+    let axis = |img: &ScalarImage| img.sample(centre());
+    let gpu_axis: Vec<f64> = planes
+        .iter()
+        .map(|p| axis(&light(&mut gpu, &lens.p, SIZE, p.1)))
+        .collect();
+    let exact_axis: Vec<f64> = exact.planes.iter().map(|p| axis(&p.channel(1))).collect();
+    let argmax = |v: &[f64]| (0..v.len()).max_by(|&a, &b| v[a].total_cmp(&v[b])).unwrap_or(0);
+    let (g, e) = (argmax(&gpu_axis), argmax(&exact_axis));
+    eprintln!(
+        "on-axis maximum: GPU at {:.3} R ({:.1}), exact at {:.3} R ({:.1}); GPU {gpu_axis:.1?}, exact {exact_axis:.1?}",
+        (zs[g] - lens.centre_z) / R,
+        gpu_axis[g],
+        (zs[e] - lens.centre_z) / R,
+        exact_axis[e]
+    );
+    // Planes are Δs = 1 voxel = R/16 apart; measured: the same plane (1.31 R).
+    assert!(g.abs_diff(e) <= 1, "on-axis maximum {g} planes vs exact {e}");
+    // Not at the edges of the searched range: the focus lies between R and 2 R.
+    assert!(e > 0 && e + 1 < zs.len(), "exact maximum at the range's end");
+}
+
+/// A glass cylinder (n = 1.5, radius `R`, axis along y, surface ramp of 3 voxels as the
+/// ball's) with R + 4 voxels of air in front and room for planes 2.5 R behind its axis.
+fn cylinder() -> Lens {
+    let (volume, tf, _) = ball_lens(R).expect("ball volume");
+    let [side, _, depth] = volume.dims;
+    let rows = 16usize;
+    let centre_z = -(depth as f64) / 2.0 + R + 4.0;
+    let mut data = Vec::with_capacity(side * rows * depth);
+    for k in 0..depth {
+        for _ in 0..rows {
+            for i in 0..side {
+                let x = i as f64 + 0.5 - side as f64 / 2.0;
+                let z = k as f64 + 0.5 - depth as f64 / 2.0 - centre_z;
+                let r = (x * x + z * z).sqrt();
+                data.push((0.5 * (0.5 - (r - R) / 3.0).clamp(0.0, 1.0)) as f32);
+            }
+        }
+    }
+    let volume = Volume::new([side, rows, depth], [1.0; 3], data).expect("cylinder volume");
+    // The same framing as the ball: the frame spans 4 R horizontally.
+    let mut scene = ball_scene(&volume, &tf, R);
+    let extent = Vec3::new(side as f32, rows as f32, depth as f32);
+    scene.camera.zoom = extent.length() / (4.0 * R as f32);
+    lens(scene, volume, tf, centre_z)
+}
+
+#[test]
+fn cylinder_lens_focal_line_lies_where_the_exact_trace_has_it() {
+    let mut gpu = Gpu::new();
+    let lens = cylinder();
+    let first = nearest_sweep_plane(&lens.view, lens.centre_z + R).0;
+    let last = nearest_sweep_plane(&lens.view, lens.centre_z + 2.5 * R).0;
+    let zs: Vec<(f32, f64)> = (first..=last)
+        .map(|k| {
+            let p = nearest_sweep_plane(&lens.view, lens.view.z_first as f64 + k as f64 * lens.view.step as f64);
+            (p.1, p.2)
+        })
+        .collect();
+    let exact = plane_light::trace_scene(
+        &lens.p,
+        SIZE,
+        SIZE,
+        &zs.iter().map(|p| p.1).collect::<Vec<_>>(),
+        &PlaneSettings::default(),
+    )
+    .expect("exact trace");
+    // The light along the focal line: the mean over the middle rows at the axis column.
+    let line = |img: &ScalarImage| {
+        let c = centre();
+        (-3..=3)
+            .map(|dy| img.sample(c + DVec2::new(0.0, dy as f64)))
+            .sum::<f64>()
+            / 7.0
+    };
+    let gpu_line: Vec<f64> = zs.iter().map(|p| line(&light(&mut gpu, &lens.p, SIZE, p.0))).collect();
+    let exact_line: Vec<f64> = exact.planes.iter().map(|p| line(&p.channel(1))).collect();
+    let argmax = |v: &[f64]| (0..v.len()).max_by(|&a, &b| v[a].total_cmp(&v[b])).unwrap_or(0);
+    let (g, e) = (argmax(&gpu_line), argmax(&exact_line));
+    eprintln!(
+        "cylinder focal line: GPU at {:.3} R ({:.2}), exact at {:.3} R ({:.2}); GPU {gpu_line:.2?}, exact {exact_line:.2?}",
+        (zs[g].1 - lens.centre_z) / R,
+        gpu_line[g],
+        (zs[e].1 - lens.centre_z) / R,
+        exact_line[e]
+    );
+    // Within one voxel (one plane at Δs = 1) of the exact trace's focal line; measured: the
+    // same plane (1.31 R).
+    assert!(
+        (zs[g].1 - zs[e].1).abs() <= 1.0 + 1e-3,
+        "focal line {} voxels from the exact one",
+        zs[g].1 - zs[e].1
+    );
+    assert!(e > 0 && e + 1 < zs.len(), "exact maximum at the range's end");
+}
+
+/// η = 1.1 (value 0.5) filling an N³ volume to its faces, air (η = 1) around it; value 1 marks
+/// an opaque rod along y, 2 × 2 voxels, at world (0, ·, `ROD_Z`).
+const GLASS_N: usize = 48;
+const ROD_Z: f32 = 8.0;
+
+fn glass_block(eta: f32) -> (Volume, TransferFunctions) {
+    let n = GLASS_N as f32;
+    let volume = volume_from(GLASS_N, |x, _, z| {
+        let (x, z) = ((x - 0.5) * n, (z - 0.5) * n - ROD_Z);
+        if x.abs() < 1.0 && z.abs() < 1.0 {
+            1.0
+        } else {
+            0.5
+        }
+    });
+    let tf = TransferFunctions {
+        name: None,
+        opacity: Curve {
+            points: vec![[0.0, 0.0], [0.7, 0.0], [0.8, 1.0], [1.0, 1.0]],
+        },
+        color: ColorRamp::constant([1.0; 3]),
+        eta: Curve {
+            points: vec![[0.0, 1.0], [0.5, eta], [1.0, eta]],
+        },
+        medium: ColorRamp::constant([1.0; 3]),
+        albedo: None,
+        anisotropy: None,
+    };
+    (volume, tf)
+}
+
+#[test]
+fn glass_to_the_volume_edge_refracts_light_and_view_rays_by_snells_law() {
+    let mut gpu = Gpu::new();
+    let incidence = 30f64.to_radians();
+    let expected = (incidence.sin() / 1.1).asin();
+    // Light at 30° off the view axis from the top of the image.
+    let (volume, tf) = glass_block(1.1);
+    let mut scene = head_on_scene(&tf);
+    scene.light.polar_deg = 30.0;
+    scene.shading.specular = 0.0;
+    let p = prepared(scene, volume.clone(), tf.clone());
+    let out = gpu.debug(&p, 64, DebugView::LightDirection, 0.3);
+    let px = out.image.pixels[32 * 64 + 20];
+    let d = glam::DVec3::new(px[0] as f64, px[1] as f64, px[2] as f64) * 2.0 - glam::DVec3::ONE;
+    let light_angle = (d.x * d.x + d.y * d.y).sqrt().atan2(d.z);
+    // View rays: the camera turned 30° about y; the rod's image moves by
+    // T·(tan θ − tan θ')·cos θ against the same block with η = 1 (T: depth of the rod below
+    // the front face).
+    let size = 128u32;
+    let rod_u = |gpu: &mut Gpu, eta: f32, reference: bool| {
+        let (volume, tf) = glass_block(eta);
+        let mut scene = head_on_scene(&tf);
+        scene.camera.yaw_deg = 30.0;
+        scene.shading.specular = 0.0;
+        let p = prepared(scene, volume, tf);
+        let img = if reference {
+            caustica::reference::render(
+                &p,
+                size,
+                size,
+                &caustica::reference::ReferenceSettings::default(),
+                false,
+            )
+            .unwrap()
+        } else {
+            gpu.render(&p, &RenderRequest::new(size, size)).image
+        };
+        let (mut sum, mut weight) = (0.0, 0.0);
+        for y in size / 2 - 8..size / 2 + 8 {
+            for x in 0..size {
+                let v = luminance(&img.pixels[(y * size + x) as usize]) as f64;
+                sum += v * x as f64;
+                weight += v;
+            }
+        }
+        let view = ViewSetup::new(&p.scene, p.volume.dims, p.volume.spacing, size, size).expect("view");
+        (sum / weight, view)
+    };
+    let (u_glass, view) = rod_u(&mut gpu, 1.1, false);
+    let (u_air, _) = rod_u(&mut gpu, 1.0, false);
+    // The same measurement on the independent reference (RK4 view rays, photon light).
+    let (ref_glass, _) = rod_u(&mut gpu, 1.1, true);
+    let (ref_air, _) = rod_u(&mut gpu, 1.0, true);
+    let texel = (view.point_at(glam::Vec2::new(1.0, 0.0), 0.0) - view.point_at(glam::Vec2::ZERO, 0.0)).length();
+    let depth = ROD_Z as f64 + GLASS_N as f64 / 2.0;
+    let shift = (u_glass - u_air).abs() * texel as f64;
+    let angle_of = |shift: f64| (incidence.tan() - shift / (depth * incidence.cos())).atan();
+    let view_angle = angle_of(shift);
+    let ref_shift = (ref_glass - ref_air).abs() * texel as f64;
+    let ref_angle = angle_of(ref_shift);
+    eprintln!(
+        "Snell 1 → 1.1 at 30°: expected {:.3}°, light {:.3}°, view {:.3}° (rod shifted {shift:.3} voxels), reference view {:.3}° ({ref_shift:.3} voxels)",
+        expected.to_degrees(),
+        light_angle.to_degrees(),
+        view_angle.to_degrees(),
+        ref_angle.to_degrees()
+    );
+    // Light: Snell's angle within 1% (measured: to 0.001°). An initial direction L·η (which
+    // scales the tangential component Snell's law keeps) or a sweep that starts on the face
+    // and misses the index step in front of its first plane refracts too little (the 1.1
+    // block then acts like η ≈ 1.03: 29°).
+    assert!(
+        (light_angle / expected - 1.0).abs() < 0.01,
+        "light at {}°",
+        light_angle.to_degrees()
+    );
+    // View rays, from the rod's shift (1.86 voxels expected, 0 without refraction): measured
+    // 2.11 on the GPU (1.55%, 0.4° from Snell's angle) and 1.55 on the reference (1.9% the
+    // other way). The measurement itself is good to about 2%: the rod is 2 voxels wide, seen
+    // at 30° or 27°, and its brightness-weighted centroid moves with the faces shown and the
+    // light on them. Bound 2.5% for both; a view ray entering with the direction L·η, or
+    // missing the index step in front of the first plane, is off by 5% and more.
+    assert!(
+        (view_angle / expected - 1.0).abs() < 0.025,
+        "view rays at {}°",
+        view_angle.to_degrees()
+    );
+    assert!(
+        (ref_angle / expected - 1.0).abs() < 0.025,
+        "reference view rays at {}°",
+        ref_angle.to_degrees()
+    );
+}
+
+/// An opaque half-plane (y < 0 of the box) 4 voxels thick, its back face at world z = −16, in
+/// an N³ volume; light head-on with `softness`.
+const SHADOW_N: usize = 64;
+
+fn occluder(softness: f32, ds: f32) -> (PreparedScene, ViewSetup) {
+    let n = SHADOW_N as f32;
+    let volume = volume_from(SHADOW_N, |_, y, z| {
+        let z = (z - 0.5) * n;
+        ((y < 0.5) && (-20.0..-16.0).contains(&z)) as u8 as f32
+    });
+    let tf = plain_tf(vec![[0.0, 0.0], [0.5, 1.0], [1.0, 1.0]], vec![[0.0, 1.0, 1.0, 1.0]]);
+    let mut scene = head_on_scene(&tf);
+    scene.camera.zoom = (n * 3f32.sqrt()) / SHADOW_N as f32;
+    scene.light.softness = softness;
+    scene.quality.sample_distance = ds;
+    let view = ViewSetup::new(&scene, volume.dims, volume.spacing, 64, 64).expect("view");
+    (prepared(scene, volume, tf), view)
+}
+
+#[test]
+fn soft_shadow_edges_widen_like_a_cone_whatever_the_plane_distance() {
+    let mut gpu = Gpu::new();
+    let softness = 0.2;
+    let distances = [8.0, 16.0, 24.0, 32.0];
+    let mut widths = Vec::new();
+    let mut exact_widths = Vec::new();
+    for ds in [1.0f32, 0.25] {
+        let (p, view) = occluder(softness, ds);
+        let row: Vec<f64> = distances
+            .iter()
+            .map(|d| {
+                let z = view_z(&view, Vec3::new(0.0, 0.0, -16.0 + *d as f32));
+                let (_, depth, _) = nearest_sweep_plane(&view, z);
+                let img = light(&mut gpu, &p, 64, depth);
+                measure::edge_width(&img, DVec2::new(31.5, 8.0), DVec2::new(31.5, 56.0), 193).unwrap_or(f64::NAN)
+            })
+            .collect();
+        widths.push(row);
+        if exact_widths.is_empty() {
+            let zs: Vec<f64> = distances
+                .iter()
+                .map(|d| nearest_sweep_plane(&view, view_z(&view, Vec3::new(0.0, 0.0, -16.0 + *d as f32))).2)
+                .collect();
+            let exact = plane_light::trace_scene(&p, 64, 64, &zs, &PlaneSettings::default()).expect("exact trace");
+            exact_widths = exact
+                .planes
+                .iter()
+                .map(|pl| {
+                    measure::edge_width(&pl.channel(1), DVec2::new(31.5, 8.0), DVec2::new(31.5, 56.0), 193)
+                        .unwrap_or(f64::NAN)
+                })
+                .collect();
+        }
+    }
+    eprintln!(
+        "soft shadow 10–90% widths (texels) at {distances:?} behind the edge: Δs = 1 {:.2?}, Δs = 0.25 {:.2?}, exact cone {exact_widths:.2?}",
+        widths[0], widths[1]
+    );
+    // The same cone whatever the plane distance: within 10% at every distance (measured 6%).
+    for (a, b) in widths[0].iter().zip(&widths[1]) {
+        assert!((a / b - 1.0).abs() < 0.1, "widths {a} vs {b} at Δs 1 and 0.25");
+    }
+    // Growing linearly with the distance: a straight line fits each row to half a texel
+    // (measured 0.17), and its slope is the cone's (the exact trace's) within 20%; an
+    // incremental blur of radius softness·Δs per plane would grow as √D and fail both.
+    let fit = |w: &[f64]| {
+        let n = w.len() as f64;
+        let mx = distances.iter().sum::<f64>() / n;
+        let my = w.iter().sum::<f64>() / n;
+        let sxy: f64 = distances.iter().zip(w).map(|(x, y)| (x - mx) * (y - my)).sum();
+        let sxx: f64 = distances.iter().map(|x| (x - mx) * (x - mx)).sum();
+        let slope = sxy / sxx;
+        let worst = distances
+            .iter()
+            .zip(w)
+            .map(|(x, y)| (y - (my + slope * (x - mx))).abs())
+            .fold(0.0, f64::max);
+        (slope, worst)
+    };
+    let (exact_slope, _) = fit(&exact_widths);
+    for row in &widths {
+        let (slope, worst) = fit(row);
+        assert!(worst < 0.5, "widths {row:?} off a straight line by {worst}");
+        assert!(
+            (slope / exact_slope - 1.0).abs() < 0.2,
+            "slope {slope} vs the exact cone's {exact_slope}"
+        );
+    }
+}
+
+#[test]
+fn occluders_outside_the_frame_shadow_what_is_inside_it() {
+    let mut gpu = Gpu::new();
+    let n = 64usize;
+    // An opaque ball of radius 6 at world (20, 0, −16), outside a frame zoomed to ±16 voxels.
+    let volume = volume_from(n, |x, y, z| {
+        let p = glam::Vec3::new(x - 0.5, y - 0.5, z - 0.5) * n as f32 - glam::Vec3::new(20.0, 0.0, -16.0);
+        (p.length() < 6.0) as u8 as f32
+    });
+    let tf = plain_tf(vec![[0.0, 0.0], [0.5, 1.0], [1.0, 1.0]], vec![[0.0, 1.0, 1.0, 1.0]]);
+    let mut scene = head_on_scene(&tf);
+    // The frame spans 2·radius/zoom = 32 voxels.
+    scene.camera.zoom = (n as f32 * 3f32.sqrt()) / 32.0;
+    // Light from the right at 40°: the shadow moves left by tan 40° per voxel of depth.
+    scene.light.polar_deg = 40.0;
+    scene.light.azimuth_deg = 90.0;
+    let view = ViewSetup::new(&scene, volume.dims, volume.spacing, SIZE, SIZE).expect("view");
+    let p = prepared(scene, volume, tf);
+    let z = view_z(&view, Vec3::new(0.0, 0.0, 8.0));
+    let (_, depth, z_plane) = nearest_sweep_plane(&view, z);
+    let exact = plane_light::trace_scene(&p, SIZE, SIZE, &[z_plane], &PlaneSettings::default()).expect("exact trace");
+    let truth = exact.planes[0].channel(1);
+    let gpu_light = light(&mut gpu, &p, SIZE, depth);
+    let l1 = measure::relative_l1(&gpu_light, &truth, Region::all(&truth)).expect("light");
+    let total = measure::total(&gpu_light, Region::all(&gpu_light)) / measure::total(&truth, Region::all(&truth));
+    let darkest = |img: &ScalarImage| img.data.iter().cloned().fold(f64::INFINITY, f64::min);
+    eprintln!(
+        "shadow from outside the frame: L1 {l1:.3}, total {total:.4}, darkest GPU {:.3} exact {:.3}",
+        darkest(&gpu_light),
+        darkest(&truth)
+    );
+    // The shadow is there (the exact light is 0 in its core) and in the right place: L1 within
+    // 0.05 (measured 0.005); light entering the frame unobstructed would leave the core lit.
+    assert!(darkest(&gpu_light) < 0.05, "no shadow inside the frame");
+    assert!(l1 < 0.05, "L1 {l1}");
+}
