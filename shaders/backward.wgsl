@@ -177,7 +177,8 @@ fn backward_step(ij: vec2<u32>, k: u32) {
     }
     let value_lp = sample_value(lp);
     let value_x = sample_value(x);
-    let transmit = segment_transmittance(value_lp, value_x, l / ds, is_clipped(0.5 * (lp + x)));
+    let mid = sample_value(0.5 * (lp + x));
+    let transmit = segment_transmittance(value_lp, mid, value_x, l / ds, is_clipped(0.5 * (lp + x)));
     // Eq. 9: L_i = L_{i-1} I_i (1 - α) m.
     var light = max(incoming.light.rgb * intensity * transmit, vec3<f32>(0.0));
     // Shadow depth: where, weighted by the light lost, the light was lost.

@@ -398,7 +398,8 @@ fn beams_step(ij: vec2<u32>, k: u32) {
     let value = sample_value(b.pos);
     let lost_before = b.power;
     if (max(b.power.r, max(b.power.g, b.power.b)) > 0.0) {
-        b.power *= segment_transmittance(b.value, value, l / ds, is_clipped(0.5 * (x0 + b.pos)));
+        let mid = sample_value(0.5 * (x0 + b.pos));
+        b.power *= segment_transmittance(b.value, mid, value, l / ds, is_clipped(0.5 * (x0 + b.pos)));
     }
     // Shadow depth: where, weighted by the power lost, the light was lost.
     let loss = max(lost_before.r - b.power.r, max(lost_before.g - b.power.g, lost_before.b - b.power.b));

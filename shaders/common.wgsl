@@ -503,11 +503,44 @@ fn segment_medium(a: f32, b: f32, ratio: f32) -> vec3<f32> {
     return exp(-tau * ratio);
 }
 
-// What a segment lets through: (1 − α)·m (Eq. 9).
-fn segment_transmittance(a: f32, b: f32, ratio: f32, clipped: bool) -> vec3<f32> {
-    var t = vec3<f32>(1.0 - segment_particles(a, b, ratio, clipped).a);
+// Where to split a segment whose value is v0 at the front, vm halfway and v1 at the back, and
+// the value there: (fraction of the segment in front of the split, value). Pre-integration
+// takes the value as linear between the samples it is given; a thin feature whose peak (or
+// trough) falls between two samples would lose it, and its opacity would depend on where the
+// samples land (woodgrain on thin sheets). When the middle sample is the extreme of the three,
+// the parabola through them locates the extremum, and the segment is split there; otherwise
+// halfway.
+fn segment_split(v0: f32, vm: f32, v1: f32) -> vec2<f32> {
+    let b = 4.0 * vm - 3.0 * v0 - v1;
+    let c = 2.0 * (v0 + v1) - 4.0 * vm;
+    let extreme = (vm > max(v0, v1) || vm < min(v0, v1)) && abs(c) > 1e-6;
+    if (!extreme) {
+        return vec2<f32>(0.5, vm);
+    }
+    // c and b have opposite signs here, so the extremum lies inside (0, 1).
+    let t = clamp(-b / (2.0 * c), 0.0, 1.0);
+    return vec2<f32>(t, clamp(v0 - b * b / (4.0 * c), 0.0, 1.0));
+}
+
+// A segment split at `split` (segment_split): its particles, front part over back part.
+fn split_particles(a: f32, split: vec2<f32>, b: f32, ratio: f32, clipped: bool) -> vec4<f32> {
+    let front = segment_particles(a, split.y, ratio * split.x, clipped);
+    let back = segment_particles(split.y, b, ratio * (1.0 - split.x), clipped);
+    let through = 1.0 - front.a;
+    return vec4<f32>(front.rgb + through * back.rgb, 1.0 - through * (1.0 - back.a));
+}
+
+// Medium transmittance of a segment split at `split`.
+fn split_medium(a: f32, split: vec2<f32>, b: f32, ratio: f32) -> vec3<f32> {
+    return segment_medium(a, split.y, ratio * split.x) * segment_medium(split.y, b, ratio * (1.0 - split.x));
+}
+
+// What a segment from value a through m (halfway) to b lets through: (1 − α)·m (Eq. 9).
+fn segment_transmittance(a: f32, m: f32, b: f32, ratio: f32, clipped: bool) -> vec3<f32> {
+    let split = segment_split(a, m, b);
+    var t = vec3<f32>(1.0 - split_particles(a, split, b, ratio, clipped).a);
     if (MEDIUM) {
-        t *= segment_medium(a, b, ratio);
+        t *= split_medium(a, split, b, ratio);
     }
     return t;
 }

@@ -60,6 +60,34 @@ fn view_end(i: u32, tile: u32, aux: vec4<f32>) {
     atomicSub(&view_tiles[tile], 1u);
 }
 
+// h(x) = (1 − e^−x) / x, h(0) = 1: the mean of e^−u over u in [0, x].
+fn mean_exp(x: vec3<f32>) -> vec3<f32> {
+    let series = 1.0 - x * (0.5 - x / 6.0);
+    return select((1.0 - exp(-x)) / x, series, abs(x) < vec3<f32>(1e-3));
+}
+
+// The diffuse light seen by a segment's particles, whose light is l0 at the front and l1 at
+// the back and whose opacity is alpha. Where the light falls along the segment it is taken to
+// fall with the optical depth the view ray meets (the particles that shade a surface also
+// shadow it): with T the segment's optical depth and Λ = ln(l0 / l1), the particles see
+// l0 · h(T + Λ) / h(T). This is the trapezoid rule's limit on a clear segment and l0 / (1 + k)
+// deep in an opaque one whose light falls k times as fast as the view's transmittance, so a
+// surface's brightness does not depend on where in the segment it starts (woodgrain). Where
+// the light rises (out of a shadow, into a caustic) it is linear along the segment, weighted
+// by where the particles are (their centroid: 1/2 on a clear segment, 1/T on an opaque one).
+fn segment_light(l0: vec3<f32>, l1: vec3<f32>, alpha: f32) -> vec3<f32> {
+    let t = -log(max(1.0 - alpha, 1e-7));
+    // The light's own fall, bounded where l1 underflows: e^−14 ≈ 1e-6 of the front.
+    let fall = clamp(log(max(l0, vec3<f32>(1e-30)) / max(l1, vec3<f32>(1e-30))), vec3<f32>(0.0), vec3<f32>(14.0));
+    let falling = l0 * mean_exp(vec3<f32>(t) + fall) / mean_exp(vec3<f32>(t));
+    var centroid = 0.5;
+    if (t > 1e-3) {
+        centroid = 1.0 / t - 1.0 / (exp(t) - 1.0);
+    }
+    let rising = mix(l0, l1, centroid);
+    return select(falling, rising, l1 >= l0);
+}
+
 // One segment from plane k-1 to plane k.
 fn view_step(px: vec2<u32>, k: u32, tile: u32) {
     let i = pixel_index(px);
@@ -90,12 +118,12 @@ fn view_step(px: vec2<u32>, k: u32, tile: u32) {
     let value1 = sample_value(x1);
     let value0 = select(aux.y, value1, skipped);
     let ratio = length(x1 - x0) / ds;
-    let s = segment_particles(value0, value1, ratio, is_clipped(0.5 * (x0 + x1)));
-    // Diffuse light over the segment: the mean of its two ends (trapezoid rule); the front
-    // end alone makes surfaces facing the light too bright.
+    let clipped = is_clipped(0.5 * (x0 + x1));
+    let split = segment_split(value0, sample_value(0.5 * (x0 + x1)), value1);
+    let s = split_particles(value0, split, value1, ratio, clipped);
     let l1 = light_at(k, x1);
     let l0 = select(load_view_light(i).rgb, l1.color, skipped);
-    let i_d = 0.5 * (l0 + l1.color) * P.light_color.rgb;
+    let i_d = s.rgb * segment_light(l0, l1.color, s.a) * P.light_color.rgb;
     var color = load_view_color(i);
     var medium = vec3<f32>(1.0);
     if (MEDIUM) {
@@ -135,12 +163,12 @@ fn view_step(px: vec2<u32>, k: u32, tile: u32) {
     }
     // Eq. 14 (Oddy–Willis compositing).
     let transparency = 1.0 - color.a;
-    color = vec4<f32>(color.rgb + transparency * medium * (s.rgb * i_d + i_s), color.a + transparency * s.a);
+    color = vec4<f32>(color.rgb + transparency * medium * (i_d + i_s), color.a + transparency * s.a);
     if (guarded(SG_MAX_RADIANCE)) {
         color = vec4<f32>(min(color.rgb, vec3<f32>(MAX_RADIANCE)), color.a);
     }
     if (MEDIUM) {
-        medium *= segment_medium(value0, value1, ratio);
+        medium *= split_medium(value0, split, value1, ratio);
         store_view_medium(i, vec4<f32>(medium, 1.0));
     }
     if (REFRACTION) {

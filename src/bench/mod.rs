@@ -13,6 +13,7 @@ mod report;
 pub mod scatter;
 pub mod speed;
 mod speed_report;
+pub mod steps;
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};

@@ -52,7 +52,8 @@ pub struct BenchArgs {
     /// distance 1, 0.5, 0.25; writes light.md and light.csv.
     #[arg(long)]
     light: bool,
-    /// With --light: the image edge in texels (the frame spans 4 R; default 128, or 64 with --quick).
+    /// With --light: the image edge in texels (the frame spans 4 R; default 128, or 64 with
+    /// --quick); with --steps: the viewport edge.
     #[arg(long)]
     size: Option<u32>,
     /// Instead of the sweep, the speed table: GPU ms per frame and per plane, planes,
@@ -76,6 +77,14 @@ pub struct BenchArgs {
     /// --light, the exact plane trace's (versus rays per texel and step); no GPU.
     #[arg(long)]
     convergence: bool,
+    /// Instead of the sweep, convergence in the plane distance: each scene's default image
+    /// against Δs = 0.25 (128-voxel built-in volumes at 160²), and with --quick against the
+    /// reference too (40³, 128² against a 64² reference); writes steps.md and steps.csv.
+    #[arg(long)]
+    steps: bool,
+    /// With --steps: scene files measured besides the built-in scenes (GPU only).
+    #[arg(long = "scene-file")]
+    scene_files: Vec<PathBuf>,
     /// Instead of the sweep, the beam-spread table: the Monte Carlo reference's spread of a
     /// pencil beam in Premoze et al.'s Fig. 4 medium against their Eq. 1 and 18, and against
     /// the exact moments; writes scatter.md; no GPU.
@@ -155,6 +164,9 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
         return Ok(());
     }
     let ctx = Context::new(&ContextDesc::from_env(DeviceSelector::parse(&args.device)))?;
+    if args.steps {
+        return steps_bench(args, &plan.scenes, ctx);
+    }
     if args.light {
         return light_bench(args, ctx);
     }
@@ -304,6 +316,39 @@ fn speed_bench(args: &BenchArgs) -> Result<()> {
         report.csv.display(),
         report.fit_csv.display()
     );
+    if ctx.validation_errors() > 0 {
+        return Err(BenchValidationFailed(ctx.validation_errors()).into());
+    }
+    Ok(())
+}
+
+fn steps_bench(args: &BenchArgs, scenes: &[String], ctx: std::sync::Arc<Context>) -> Result<()> {
+    use caustica::bench::steps::{self, StepsPlan, StepsScene};
+    let mut list: Vec<StepsScene> = if args.scenes.is_empty() && !args.scene_files.is_empty() {
+        Vec::new()
+    } else {
+        scenes.iter().map(|s| StepsScene::Builtin(s.clone())).collect()
+    };
+    list.extend(args.scene_files.iter().map(|p| StepsScene::File(p.clone())));
+    let mut plan = if args.quick {
+        StepsPlan::quick(list)
+    } else {
+        StepsPlan::convergence(list)
+    };
+    if let Some(r) = args.resolution {
+        plan.resolution = r;
+    }
+    if let Some(size) = args.size {
+        if size == 0 {
+            return Err(input(anyhow!("--size must be at least 1")));
+        }
+        plan.size = size;
+    }
+    plan.highlights = !args.no_highlights;
+    steps::run(ctx.clone(), &plan, &args.out, true)?;
+    let path = args.out.join("steps.md");
+    print!("{}", read_report(&path).map_err(input)?);
+    eprintln!("wrote {} and steps.csv", path.display());
     if ctx.validation_errors() > 0 {
         return Err(BenchValidationFailed(ctx.validation_errors()).into());
     }
