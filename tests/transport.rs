@@ -7,7 +7,7 @@
 
 mod common;
 
-use caustica::bench::light::{ball_lens, ball_scene};
+use caustica::bench::light::{ball_lens, ball_scene, BALL_EDGE_VOXELS};
 use caustica::reference::measure::{self, Region, ScalarImage};
 use caustica::reference::plane_light::{self, nearest_sweep_plane, PlaneSettings};
 use caustica::render::{safeguards, DebugView, PreparedScene, RenderRequest};
@@ -35,6 +35,26 @@ fn light(gpu: &mut Gpu, p: &PreparedScene, size: u32, depth: f32) -> ScalarImage
 /// View depth of a world point.
 fn view_z(view: &ViewSetup, world: Vec3) -> f64 {
     view.view_from_world.transform_point3(world).z as f64
+}
+
+/// Every sweep plane from the one nearest `from` R behind the lens's centre to the one nearest
+/// `to` R: (the relative depth that selects it, its view depth).
+fn sweep_planes(lens: &Lens, from: f64, to: f64) -> Vec<(f32, f64)> {
+    let first = nearest_sweep_plane(&lens.view, lens.centre_z + from * R).0;
+    let last = nearest_sweep_plane(&lens.view, lens.centre_z + to * R).0;
+    (first..=last)
+        .map(|k| {
+            let (_, depth, z) = nearest_sweep_plane(&lens.view, lens.view.plane_z(k) as f64);
+            (depth, z)
+        })
+        .collect()
+}
+
+/// Index of the largest value (the first of equals).
+fn argmax(v: &[f64]) -> usize {
+    (0..v.len())
+        .max_by(|&a, &b| v[a].total_cmp(&v[b]).then(b.cmp(&a)))
+        .unwrap_or(0)
 }
 
 struct Lens {
@@ -150,24 +170,16 @@ fn ball_lens_light_matches_the_exact_trace_through_and_behind_the_focus() {
 fn ball_lens_on_axis_maximum_lies_where_the_exact_trace_has_it() {
     let mut gpu = Gpu::new();
     let lens = ball();
-    let first = nearest_sweep_plane(&lens.view, lens.centre_z + R).0;
-    let last = nearest_sweep_plane(&lens.view, lens.centre_z + 2.0 * R).0;
-    let planes: Vec<(u32, f32, f64)> = (first..=last)
-        .map(|k| {
-            let z = lens.view.z_first as f64 + k as f64 * lens.view.step as f64;
-            nearest_sweep_plane(&lens.view, z)
-        })
-        .collect();
-    let zs: Vec<f64> = planes.iter().map(|p| p.2).collect();
+    let planes = sweep_planes(&lens, 1.0, 2.0);
+    let zs: Vec<f64> = planes.iter().map(|p| p.1).collect();
     let exact = plane_light::trace_scene(&lens.p, SIZE, SIZE, &zs, &PlaneSettings::default()).expect("exact trace");
     // The on-axis value: the four texels around the axis.
     let axis = |img: &ScalarImage| img.sample(centre());
     let gpu_axis: Vec<f64> = planes
         .iter()
-        .map(|p| axis(&light(&mut gpu, &lens.p, SIZE, p.1)))
+        .map(|p| axis(&light(&mut gpu, &lens.p, SIZE, p.0)))
         .collect();
     let exact_axis: Vec<f64> = exact.planes.iter().map(|p| axis(&p.channel(1))).collect();
-    let argmax = |v: &[f64]| (0..v.len()).max_by(|&a, &b| v[a].total_cmp(&v[b])).unwrap_or(0);
     let (g, e) = (argmax(&gpu_axis), argmax(&exact_axis));
     eprintln!(
         "on-axis maximum: GPU at {:.3} R ({:.1}), exact at {:.3} R ({:.1}); GPU {gpu_axis:.1?}, exact {exact_axis:.1?}",
@@ -182,8 +194,7 @@ fn ball_lens_on_axis_maximum_lies_where_the_exact_trace_has_it() {
     assert!(e > 0 && e + 1 < zs.len(), "exact maximum at the range's end");
 }
 
-/// A glass cylinder (n = 1.5, radius `R`, axis along y, surface ramp of 3 voxels as the
-/// ball's) with R + 4 voxels of air in front and room for planes 2.5 R behind its axis.
+/// A glass cylinder (n = 1.5, radius `R`, axis along y, the ball's surface ramp) with R + 4 voxels of air in front and room for planes 2.5 R behind its axis.
 fn cylinder() -> Lens {
     let (volume, tf, _) = ball_lens(R).expect("ball volume");
     let [side, _, depth] = volume.dims;
@@ -196,7 +207,7 @@ fn cylinder() -> Lens {
                 let x = i as f64 + 0.5 - side as f64 / 2.0;
                 let z = k as f64 + 0.5 - depth as f64 / 2.0 - centre_z;
                 let r = (x * x + z * z).sqrt();
-                data.push((0.5 * (0.5 - (r - R) / 3.0).clamp(0.0, 1.0)) as f32);
+                data.push((0.5 * (0.5 - (r - R) / BALL_EDGE_VOXELS).clamp(0.0, 1.0)) as f32);
             }
         }
     }
@@ -212,14 +223,7 @@ fn cylinder() -> Lens {
 fn cylinder_lens_focal_line_lies_where_the_exact_trace_has_it() {
     let mut gpu = Gpu::new();
     let lens = cylinder();
-    let first = nearest_sweep_plane(&lens.view, lens.centre_z + R).0;
-    let last = nearest_sweep_plane(&lens.view, lens.centre_z + 2.5 * R).0;
-    let zs: Vec<(f32, f64)> = (first..=last)
-        .map(|k| {
-            let p = nearest_sweep_plane(&lens.view, lens.view.z_first as f64 + k as f64 * lens.view.step as f64);
-            (p.1, p.2)
-        })
-        .collect();
+    let zs = sweep_planes(&lens, 1.0, 2.5);
     let exact = plane_light::trace_scene(
         &lens.p,
         SIZE,
@@ -238,7 +242,6 @@ fn cylinder_lens_focal_line_lies_where_the_exact_trace_has_it() {
     };
     let gpu_line: Vec<f64> = zs.iter().map(|p| line(&light(&mut gpu, &lens.p, SIZE, p.0))).collect();
     let exact_line: Vec<f64> = exact.planes.iter().map(|p| line(&p.channel(1))).collect();
-    let argmax = |v: &[f64]| (0..v.len()).max_by(|&a, &b| v[a].total_cmp(&v[b])).unwrap_or(0);
     let (g, e) = (argmax(&gpu_line), argmax(&exact_line));
     eprintln!(
         "cylinder focal line: GPU at {:.3} R ({:.2}), exact at {:.3} R ({:.2}); GPU {gpu_line:.2?}, exact {exact_line:.2?}",
