@@ -143,12 +143,14 @@ fn add_light(texel: u32, amount: vec3<f32>, weight: f32, direction: vec3<f32>, d
 // beam's power is deposited exactly once. Texels that cover no pixel of the rect (never
 // read) get nothing.
 //
-// The box is at least one pixel wide: beams converging to less than a pixel apart would
-// otherwise bin their power pixel by pixel, and one beam per pixel resolves no finer; the box
-// reconstructs what they sample (against the exact light behind a ball lens: relative L1 at
-// 1.25 R 0.086 instead of 0.146, and the on-axis maximum on the exact trace's plane).
-fn deposit(slot: u32, c: vec2<f32>, w_in: vec2<f32>, amount: vec3<f32>, direction: vec3<f32>, seed: u32) {
-    var w = max(w_in, vec2<f32>(1.0));
+// The box is at least `w_min` wide (the beam's own cell, at most a pixel): beams converging
+// to less than that apart would otherwise bin their power pixel by pixel, and beams that far
+// apart resolve no finer; the box reconstructs what they sample (against the exact light
+// behind a ball lens: relative L1 at 1.25 R 0.086 instead of 0.146, and the on-axis maximum
+// on the exact trace's plane). No wider than the cell, so that the grid's edge beams keep
+// their power inside the grid's region.
+fn deposit(slot: u32, c: vec2<f32>, w_in: vec2<f32>, w_min: f32, amount: vec3<f32>, direction: vec3<f32>, seed: u32) {
+    var w = max(w_in, vec2<f32>(w_min));
     let widest = max(w.x, w.y);
     let m = min(u32(max(ceil(log2(max(widest, 1.0))), 0.0)), ACC_LEVELS - 1u);
     let s = f32(1u << m);
@@ -258,7 +260,10 @@ fn deposit_beam(k: u32, b: Beam, du: vec3<f32>, dv: vec3<f32>, seed: u32) {
     let pv = project(b.pos + dv) - project(b.pos);
     let w = vec2<f32>(length(vec2<f32>(pu.x, pv.x)), length(vec2<f32>(pu.y, pv.y)));
     let d = light_direction(b.v);
-    deposit(k % 3u, c, w, b.power * deposit_scale(b.pos.z, d), d, seed);
+    // The beam's cell on this plane, unrefracted (plane-0 pixels scale with depth in
+    // perspective).
+    let cell = P.beam_origin.z * sqrt(pixel_area(P.plane.x) / pixel_area(b.pos.z));
+    deposit(k % 3u, c, w, min(cell, 1.0), b.power * deposit_scale(b.pos.z, d), d, seed);
 }
 
 // Beam (i, j) at plane 0: unobstructed light entering the sweep, deposited for the first

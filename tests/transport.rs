@@ -7,7 +7,7 @@
 
 mod common;
 
-use caustica::bench::light::{ball_lens, ball_scene, BALL_EDGE_VOXELS};
+use caustica::bench::light::{ball_lens, ball_scene, graded_ball, BALL_EDGE_VOXELS};
 use caustica::reference::measure::{self, Region, ScalarImage};
 use caustica::reference::plane_light::{self, nearest_sweep_plane, PlaneSettings};
 use caustica::render::{safeguards, DebugView, PreparedScene, RenderRequest};
@@ -164,6 +164,78 @@ fn ball_lens_light_matches_the_exact_trace_through_and_behind_the_focus() {
         );
     }
     eprintln!("ball lens against the exact trace:\n  {}", report.join("\n  "));
+}
+
+#[test]
+fn ball_lens_light_converges_to_the_continuous_ball_at_fine_steps_and_beams() {
+    // The caustics checks at Δs = ¼ and 2² beams per texel, against the exact trace of the
+    // continuous ball the volume samples (`graded_ball`: the analytic index ramp, RK4 ¼
+    // voxel, 8² rays per texel), so that voxelising the lens counts as the renderer's error.
+    let mut gpu = Gpu::new();
+    let (volume, tf, centre_world) = ball_lens(R).expect("ball volume");
+    let mut scene = ball_scene(&volume, &tf, R);
+    scene.quality.sample_distance = 0.25;
+    scene.quality.beams_per_texel = 2.0;
+    let ball = graded_ball(&volume, R, centre_world);
+    let lens = lens(scene, volume, tf, centre_world);
+    let planes: Vec<(u32, f32, f64)> = DEPTHS
+        .iter()
+        .map(|m| nearest_sweep_plane(&lens.view, lens.centre_z + m * R))
+        .collect();
+    let zs: Vec<f64> = planes.iter().map(|p| p.2).collect();
+    let settings = PlaneSettings {
+        rays_per_texel: 8,
+        ..PlaneSettings::default()
+    };
+    let exact = plane_light::trace_scene_through(&lens.p, &ball, SIZE, SIZE, &zs, &settings).expect("exact trace");
+    let voxels = plane_light::trace_scene(&lens.p, SIZE, SIZE, &zs, &settings).expect("voxel trace");
+    let mut report = Vec::new();
+    for (i, &(_, depth, z)) in planes.iter().enumerate() {
+        let gpu_light = light(&mut gpu, &lens.p, SIZE, depth);
+        let truth = exact.planes[i].channel(1);
+        let voxel_light = voxels.planes[i].channel(1);
+        let l1 = measure::relative_l1(&gpu_light, &truth, Region::square(&truth, centre(), 1.5 * R)).expect("light");
+        let inside = measure::power_inside(&gpu_light, centre(), R) / measure::power_inside(&truth, centre(), R);
+        let all = |img: &ScalarImage| measure::total(img, Region::all(img));
+        let total = all(&gpu_light) / all(&voxel_light);
+        let sectors = measure::sector_variation(&gpu_light, centre(), 0.25 * R, 0.75 * R, 16);
+        let at = (z - lens.centre_z) / R;
+        report.push(format!(
+            "{at:.2} R: L1 {l1:.3}, power r < R {inside:.3}, total (vs voxels) {total:.4}, total (vs ball) {:.4}, sectors {sectors:.3} (exact {:.3})",
+            all(&gpu_light) / all(&truth),
+            measure::sector_variation(&truth, centre(), 0.25 * R, 0.75 * R, 16)
+        ));
+        // Measured on lavapipe: L1 0.058–0.088 (at the defaults, Δs = 1 and one beam per
+        // texel, 0.09–0.17; the voxelised ball's own exact trace is 0.08–0.16 from the
+        // continuous one), power inside R 0.988–1.022. Bounds: the issue's, 0.10 and 3%.
+        assert!(l1 <= 0.10, "L1 {l1} at {at:.2} R");
+        assert!((inside - 1.0).abs() <= 0.03, "power inside R: {inside} at {at:.2} R");
+        // Conservation on the field the GPU is given: the voxelised ball sends 0.6–1.5% of the
+        // light out of the frame past the rim where the continuous one does not, so the total
+        // is compared with the voxels' exact trace. Measured 0.991–1.008; bound 1%.
+        assert!((total - 1.0).abs() <= 0.01, "total power: {total} at {at:.2} R");
+        // Round behind the focus: the sectors of the annulus R/4–3R/4 within 5% (measured
+        // 0.022 and 0.011 at 2 and 3 R; the exact light's 0.010 and 0.000; at 1.5 R the GPU's
+        // reads 0.06, at 1.1 and 1.25 R near the focus the voxelised ball's own exact trace
+        // 0.14–0.32).
+        if DEPTHS[i] >= 2.0 {
+            assert!(sectors <= 0.05, "angular structure {sectors} at {at:.2} R");
+        }
+    }
+    eprintln!(
+        "ball lens (Δs ¼, 2² beams) against the continuous ball:\n  {}",
+        report.join("\n  ")
+    );
+    // In front of the ball the light is unobstructed: 1 on every texel, so the frame holds
+    // its area exactly (measured 1.0000 to f32 rounding; at Δs = 1 a deposit box wider than
+    // the beams' half-pixel cells spilled the grid's edge beams past its region: 0.9927).
+    let mut scene = lens.p.scene.clone();
+    scene.quality.sample_distance = 1.0;
+    let coarse = self::lens(scene, (*lens.p.volume).clone(), lens.p.tf.clone(), centre_world);
+    let front = nearest_sweep_plane(&coarse.view, coarse.centre_z - 1.1 * R);
+    let before = light(&mut gpu, &coarse.p, SIZE, front.1);
+    let area = measure::total(&before, Region::all(&before)) / (SIZE * SIZE) as f64;
+    assert!((area - 1.0).abs() < 1e-3, "unobstructed light over the frame: {area}");
 }
 
 #[test]

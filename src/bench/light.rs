@@ -5,18 +5,21 @@
 //!
 //! Each receiver plane is the plane of the GPU's sweep nearest to the wanted distance behind
 //! the ball's centre (`reference::plane_light::nearest_sweep_plane`), and the exact trace is
-//! run at exactly that depth, so both sides measure the same plane. The exact light is traced
-//! once for every plane of every sample distance and shared by the variants.
+//! run at exactly that depth, so both sides measure the same plane. The exact light is the
+//! continuous ball's ([`graded_ball`]: the analytic index ramp the volume samples), traced
+//! once for every plane of every sample distance and shared by the variants; the voxelised
+//! ball's exact trace is measured against it too, as the error voxelisation alone makes.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
 
-use glam::{DVec2, Vec3};
+use glam::{DVec2, DVec3, Vec3};
 
 use super::{median, write_err, BenchError};
 use crate::gpu::Context;
+use crate::reference::graded_ball::GradedBall;
 use crate::reference::measure::{self, Region, ScalarImage};
 use crate::reference::plane_light::{self, nearest_sweep_plane, PlaneSettings};
 use crate::render::{DebugView, PreparedScene, RenderRequest, Renderer, ViewSetup};
@@ -31,6 +34,9 @@ pub const BALL_ETA: f32 = 1.5;
 /// focus draws an eight-fold star into the exact light (at 3 R behind a 1.5-voxel ramp, ±40%
 /// around r = R/2; a smooth analytic ball gives ±3%). Three voxels, as the analytic tests.
 pub const BALL_EDGE_VOXELS: f64 = 3.0;
+
+/// Label of the rows that measure the voxelised ball's exact trace (no GPU).
+pub const VOXELS_LABEL: &str = "exact trace of the voxels (CPU)";
 
 /// A light-transport setting to measure: a label and what it changes in the scene.
 pub struct Variant {
@@ -141,6 +147,21 @@ pub fn ball_lens(radius: f64) -> Result<(Volume, TransferFunctions, f64), Volume
     Ok((Volume::new(dims, [1.0; 3], data)?, tf, centre_z))
 }
 
+/// The continuous ball that [`ball_lens`] samples: the same index ramp as an analytic field,
+/// centred at world z `centre_z` in `volume`'s box. Its exact trace is the truth the light
+/// bench and tests measure against (voxelisation is part of the renderer's error).
+pub fn graded_ball(volume: &Volume, radius: f64, centre_z: f64) -> GradedBall {
+    let extent = |a: usize| volume.dims[a] as f64 * volume.spacing[a] as f64;
+    GradedBall {
+        centre: DVec3::new(0.0, 0.0, centre_z),
+        radius,
+        edge: BALL_EDGE_VOXELS,
+        eta_in: BALL_ETA as f64,
+        eta_out: 1.0,
+        half_extent: 0.5 * DVec3::new(extent(0), extent(1), extent(2)),
+    }
+}
+
 /// The scene around the ball: orthographic, head-on, the frame spanning 4 R; hard white light
 /// along the view axis; black background.
 pub fn ball_scene(volume: &Volume, tf: &TransferFunctions, radius: f64) -> Scene {
@@ -193,10 +214,10 @@ pub struct LightRow {
     pub power_inside_ratio: f64,
     /// Power on the whole frame, GPU / exact.
     pub total_power_ratio: f64,
-    /// Largest relative deviation around the circle r = R/2 (GPU; the exact light's is
-    /// reported alongside).
-    pub azimuthal_gpu: f64,
-    pub azimuthal_exact: f64,
+    /// Angular structure: largest relative deviation from their mean of the power in 16
+    /// sectors of the annulus R/4–3R/4 (GPU; the exact light's alongside).
+    pub angular_gpu: f64,
+    pub angular_exact: f64,
     pub ms_per_plane: f64,
 }
 
@@ -254,8 +275,16 @@ pub fn run(ctx: Arc<Context>, plan: &LightPlan, out: &Path) -> Result<LightRepor
     let zs: Vec<f64> = planes.iter().map(|p| p.4).collect();
     let exact_scene = PreparedScene::from_parts(base.clone(), volume.clone(), tf.clone())?;
     let started = Instant::now();
-    let exact = plane_light::trace_scene(&exact_scene, size, size, &zs, &plan.reference)?;
+    let ball = graded_ball(&volume, plan.radius, centre_z);
+    let exact = plane_light::trace_scene_through(&exact_scene, &ball, size, size, &zs, &plan.reference)?;
     let reference_seconds = started.elapsed().as_secs_f64();
+    // The voxelised ball traced exactly: what sampling the lens onto voxels costs by itself.
+    let first_zs: Vec<f64> = planes
+        .iter()
+        .filter(|p| p.0 == plan.sample_distances[0])
+        .map(|p| p.4)
+        .collect();
+    let voxels = plane_light::trace_scene(&exact_scene, size, size, &first_zs, &plan.reference)?;
 
     let texel = 4.0 * plan.radius / size as f64;
     let centre = DVec2::splat((size as f64 - 1.0) / 2.0);
@@ -269,6 +298,43 @@ pub fn run(ctx: Arc<Context>, plan: &LightPlan, out: &Path) -> Result<LightRepor
         .filter(|(_, p)| p.0 == first_ds)
         .map(|(i, _)| exact.planes[i].channel(1))
         .collect()];
+    let ratio = |a: f64, b: f64| if b != 0.0 { a / b } else { f64::NAN };
+    let r_texels = plan.radius / texel;
+    let annulus = |img: &ScalarImage| measure::sector_variation(img, centre, 0.25 * r_texels, 0.75 * r_texels, 16);
+    let compare =
+        |label: &str, ds: f32, d: f64, k: u32, plane_r: f64, test: &ScalarImage, truth: &ScalarImage, ms: f64| {
+            let region = Region::square(truth, centre, 1.5 * r_texels);
+            LightRow {
+                variant: label.into(),
+                sample_distance: ds,
+                depth_r: d,
+                plane_r,
+                plane_index: k,
+                rel_l1: measure::relative_l1(test, truth, region).unwrap_or(f64::NAN),
+                gpu_max: measure::peak(test).value,
+                exact_max: measure::peak(truth).value,
+                power_inside_ratio: ratio(
+                    measure::power_inside(test, centre, r_texels),
+                    measure::power_inside(truth, centre, r_texels),
+                ),
+                total_power_ratio: ratio(
+                    measure::total(test, Region::all(test)),
+                    measure::total(truth, Region::all(truth)),
+                ),
+                angular_gpu: annulus(test),
+                angular_exact: annulus(truth),
+                ms_per_plane: ms,
+            }
+        };
+    picture.push(Vec::new());
+    for (j, (i, &(ds, d, k, _, _, plane_r))) in planes.iter().enumerate().filter(|(_, p)| p.0 == first_ds).enumerate() {
+        let test = voxels.planes[j].channel(1);
+        let truth = exact.planes[i].channel(1);
+        if let Some(row) = picture.last_mut() {
+            row.push(test.clone());
+        }
+        rows.push(compare(VOXELS_LABEL, ds, d, k, plane_r, &test, &truth, f64::NAN));
+    }
     for variant in &plan.variants {
         picture.push(Vec::new());
         let mut prepared: Option<PreparedScene> = None;
@@ -296,35 +362,21 @@ pub fn run(ctx: Arc<Context>, plan: &LightPlan, out: &Path) -> Result<LightRepor
             let gpu = ScalarImage::from_image(&frame.image, 1);
             let mut truth = exact.planes[i].channel(1);
             truth.data.iter_mut().for_each(|v| *v *= light);
-            let region = Region::square(&truth, centre, 1.5 * plan.radius / texel);
-            let r = plan.radius / texel;
             if ds == first_ds {
                 if let Some(row) = picture.last_mut() {
                     row.push(gpu.clone());
                 }
             }
-            let ratio = |a: f64, b: f64| if b != 0.0 { a / b } else { f64::NAN };
-            rows.push(LightRow {
-                variant: variant.label.clone(),
-                sample_distance: ds,
-                depth_r: d,
+            rows.push(compare(
+                &variant.label,
+                ds,
+                d,
+                k,
                 plane_r,
-                plane_index: k,
-                rel_l1: measure::relative_l1(&gpu, &truth, region).unwrap_or(f64::NAN),
-                gpu_max: measure::peak(&gpu).value,
-                exact_max: measure::peak(&truth).value,
-                power_inside_ratio: ratio(
-                    measure::power_inside(&gpu, centre, r),
-                    measure::power_inside(&truth, centre, r),
-                ),
-                total_power_ratio: ratio(
-                    measure::total(&gpu, Region::all(&gpu)),
-                    measure::total(&truth, Region::all(&truth)),
-                ),
-                azimuthal_gpu: measure::azimuthal_variation(&gpu, centre, 0.5 * r, 64),
-                azimuthal_exact: measure::azimuthal_variation(&truth, centre, 0.5 * r, 64),
-                ms_per_plane: median(&mut times),
-            });
+                &gpu,
+                &truth,
+                median(&mut times),
+            ));
         }
     }
     let markdown = out.join("light.md");
@@ -354,9 +406,13 @@ fn write_markdown(
         s,
         "Light buffer (`--debug-view light`) against the exact plane irradiance. Device: {}. Glass ball \
          n = {BALL_ETA}, R = {} voxels (surface ramp {BALL_EDGE_VOXELS} voxels), parallel light head-on, \
-         orthographic, {}² texels of {texel} voxel. Exact trace: {}² rays per texel, RK4 steps of {} voxel \
-         ({reference_seconds:.0} s). Relative L1 over [−1.5 R, 1.5 R]²; power ratios GPU / exact; azimuthal \
-         variation: largest deviation from the mean around r = R/2. GPU ms per plane: median of {} renders.\n",
+         orthographic, {}² texels of {texel} voxel. Exact trace of the continuous ball (the analytic ramp \
+         the volume samples): {}² rays per texel, RK4 steps of {} voxel ({reference_seconds:.0} s); the \
+         rows `{VOXELS_LABEL}` trace the voxelised ball the same way (trilinear index, ¼-voxel central \
+         differences), the error of sampling the lens onto voxels alone. Relative L1 over [−1.5 R, 1.5 R]²; \
+         power ratios GPU / exact; angular structure: largest deviation from the mean of the power in 16 \
+         sectors of the annulus R/4–3R/4 (rings cancel, a star does not). GPU ms per plane: median of {} \
+         renders.\n",
         renderer.context().info.name,
         plan.radius,
         plan.size,
@@ -367,7 +423,7 @@ fn write_markdown(
     let _ = writeln!(
         s,
         "`light.png`: the light on the planes at Δs = {}, one column per plane (nearest to {}), rows: the exact \
-         light, then {}; each column scaled to the exact light's brightest texel, square-root tone.\n",
+         light, the voxelised ball's exact light, then {}; each column scaled to the exact light's brightest texel, square-root tone.\n",
         plan.sample_distances.first().copied().unwrap_or(1.0),
         plan.depths
             .iter()
@@ -380,12 +436,12 @@ fn write_markdown(
             .collect::<Vec<_>>()
             .join(", ")
     );
-    s.push_str("| transport | Δs | plane (R) | rel. L1 | brightest GPU | brightest exact | power r < R | total power | azimuthal GPU / exact | ms per plane |\n");
+    s.push_str("| transport | Δs | plane (R) | rel. L1 | brightest GPU | brightest exact | power r < R | total power | angular structure GPU / exact | ms per plane |\n");
     s.push_str("|---|---|---|---|---|---|---|---|---|---|\n");
     for r in rows {
         let _ = writeln!(
             s,
-            "| {} | {} | {:.3} | {:.3} | {:.2} | {:.2} | {:.3} | {:.4} | {:.3} / {:.3} | {:.2} |",
+            "| {} | {} | {:.3} | {:.3} | {:.2} | {:.2} | {:.3} | {:.4} | {:.3} / {:.3} | {} |",
             r.variant,
             r.sample_distance,
             r.plane_r,
@@ -394,9 +450,13 @@ fn write_markdown(
             r.exact_max,
             r.power_inside_ratio,
             r.total_power_ratio,
-            r.azimuthal_gpu,
-            r.azimuthal_exact,
-            r.ms_per_plane
+            r.angular_gpu,
+            r.angular_exact,
+            if r.ms_per_plane.is_finite() {
+                format!("{:.2}", r.ms_per_plane)
+            } else {
+                "—".into()
+            }
         );
     }
     std::fs::write(path, s).map_err(|e| e.to_string())
@@ -435,7 +495,7 @@ fn write_picture(path: &Path, rows: &[Vec<ScalarImage>]) -> Result<(), String> {
 
 fn write_csv(path: &Path, rows: &[LightRow]) -> Result<(), String> {
     let mut s = String::from(
-        "transport,sample_distance,depth_r,plane_r,plane_index,rel_l1,gpu_max,exact_max,power_inside_ratio,total_power_ratio,azimuthal_gpu,azimuthal_exact,ms_per_plane\n",
+        "transport,sample_distance,depth_r,plane_r,plane_index,rel_l1,gpu_max,exact_max,power_inside_ratio,total_power_ratio,angular_gpu,angular_exact,ms_per_plane\n",
     );
     for r in rows {
         let _ = writeln!(
@@ -451,8 +511,8 @@ fn write_csv(path: &Path, rows: &[LightRow]) -> Result<(), String> {
             r.exact_max,
             r.power_inside_ratio,
             r.total_power_ratio,
-            r.azimuthal_gpu,
-            r.azimuthal_exact,
+            r.angular_gpu,
+            r.angular_exact,
             r.ms_per_plane
         );
     }

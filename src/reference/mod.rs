@@ -12,11 +12,14 @@
 //! - [`scatter`]: Monte Carlo multiple scattering (delta tracking, Henyey–Greenstein
 //!   sampling) through a scattering medium: where the light of a beam goes and how wide it
 //!   spreads.
+//! - [`graded_ball`]: an analytic graded-index ball lens (the exact object behind the light
+//!   bench's voxelised ball).
 //! - [`measure`]: the comparisons tests and the bench make between images of light.
 
 // Per-channel loops index several [f64; 3] arrays at once; iterators would hide that.
 #![allow(clippy::needless_range_loop)]
 
+pub mod graded_ball;
 #[cfg(test)]
 mod lens_tests;
 pub mod measure;

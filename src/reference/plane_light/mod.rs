@@ -305,6 +305,26 @@ pub fn trace_scene(
     planes_z: &[f64],
     settings: &PlaneSettings,
 ) -> Result<PlaneLight, ReferenceError> {
+    trace_scene_through(
+        prepared,
+        &VolumeMedium::for_scene(prepared),
+        width,
+        height,
+        planes_z,
+        settings,
+    )
+}
+
+/// As [`trace_scene`], with the scene's camera and light but `medium` in place of its volume
+/// (an analytic object the volume samples, say).
+pub fn trace_scene_through<M: Medium + ?Sized>(
+    prepared: &PreparedScene,
+    medium: &M,
+    width: u32,
+    height: u32,
+    planes_z: &[f64],
+    settings: &PlaneSettings,
+) -> Result<PlaneLight, ReferenceError> {
     let scene = &prepared.scene;
     let vol = &prepared.volume;
     let setup = ViewSetup::new(scene, vol.dims, vol.spacing, width, height).map_err(ReferenceError::Setup)?;
@@ -314,7 +334,6 @@ pub fn trace_scene(
         width,
         height,
     );
-    let medium = VolumeMedium::for_scene(prepared);
     let d = light_direction(&scene.light);
     let light = DistantLight {
         direction: view
@@ -324,5 +343,5 @@ pub fn trace_scene(
         color: [1.0; 3],
         softness: scene.light.softness as f64,
     };
-    trace(&medium, &light, &view, planes_z, settings, None)
+    trace(medium, &light, &view, planes_z, settings, None)
 }
