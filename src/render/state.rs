@@ -553,7 +553,8 @@ pub(super) fn run(
                     planes: view.planes,
                     planes_run,
                     gpu_ms,
-                    ms_per_plane: gpu_ms / planes_run.max(1) as f64,
+                    ms_per_plane: (gpu_ms - lbm_light.as_ref().map_or(0.0, |l| l.stats.gpu_ms))
+                        / planes_run.max(1) as f64,
                     state_bytes: state.bytes,
                     light_grid: [layout.grid.width, layout.grid.height],
                     rect: [view.rect.width(), view.rect.height()],
