@@ -400,3 +400,32 @@ fn lbm_variants_compile() {
         }
     }
 }
+
+#[test]
+fn a_bad_lattice_setting_is_named() {
+    let dir = std::env::temp_dir().join(format!("caustica-lbm-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    for (setting, value) in [("cell_voxels", "0"), ("residual", "0.5"), ("max_iterations", "0")] {
+        let path = dir.join(format!("{setting}.toml"));
+        std::fs::write(
+            &path,
+            format!(
+                "transfer = {{ opacity = [[0.0, 0.0], [1.0, 0.5]], albedo = [[0.0, 0.9], [1.0, 0.9]] }}\n[volume]\nkind = \"builtin\"\nname = \"ball-lens\"\nresolution = 16\n[quality]\nmultiple_scattering = \"lbm\"\n[quality.lbm]\n{setting} = {value}\n"
+            ),
+        )
+        .unwrap();
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_caustica"))
+            .args([
+                "render",
+                path.to_str().unwrap(),
+                "-o",
+                dir.join("x.png").to_str().unwrap(),
+            ])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{setting} = {value} rendered");
+        assert!(err.contains(&format!("quality.lbm.{setting}")), "{err}");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
