@@ -172,8 +172,10 @@ fn step_main(@builtin(global_invocation_id) id: vec3<u32>) {
     }
 }
 
-// Per cell, with f_in the latest densities and f_out the step before: the fluence, its change,
-// the light the next step sends out of the grid and the light it absorbs.
+// Per cell, with f_in the latest densities and f_out those of the step before: the fluence,
+// its change, and what the step that made f_in from f_out sent out of the grid and absorbed.
+// Then per step, source − leaving − absorbed = Σφₙ − Σφₙ₋₁ exactly, which the summed change
+// bounds.
 @compute @workgroup_size(WG, 1, 1)
 fn measure_main(@builtin(global_invocation_id) id: vec3<u32>) {
     let i = id.x;
@@ -182,15 +184,19 @@ fn measure_main(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let c = vec3<i32>(cell_of(i));
+    let coef = cells[i];
     var now = 0.0;
     var before = 0.0;
-    var leaving = 0.0;
     for (var d = 0u; d < 6u; d++) {
         now += f_in[d * n + i];
         before += f_out[d * n + i];
+    }
+    var leaving = 0.0;
+    for (var d = 0u; d < 6u; d++) {
         if (!inside_grid(c + DIRS[d])) {
-            leaving += collide(i, d);
+            // The collision of the step before (`collide` on f_out).
+            leaving += coef.y / 6.0 * before + (1.0 - coef.y - coef.z) * f_out[d * n + i] + coef.x / 6.0;
         }
     }
-    measure[i] = vec4<f32>(now, abs(now - before), leaving, cells[i].z * now);
+    measure[i] = vec4<f32>(now, abs(now - before), leaving, coef.z * before);
 }

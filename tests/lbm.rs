@@ -107,10 +107,10 @@ fn without_absorption_the_lattice_returns_what_was_deposited() {
         "deposited {} of {expected}",
         s.deposited
     );
-    // Albedo 1: nothing is absorbed, so per step what streams out of the grid equals what the
-    // particles scatter into it, up to the change of what the grid holds, which the residual
-    // bounds: |source − leaving| ≤ residual · Σφ. Σφ is read back with the residual; the
-    // slack of 1e-5 · source covers the f32 sums of 16³ cells.
+    // Albedo 1: nothing is absorbed, so what the last step streamed out of the grid equals
+    // what the particles scatter into it, less what the grid gained over that step:
+    // |source − leaving| = |Σφₙ − Σφₙ₋₁| ≤ Σ|φₙ − φₙ₋₁| = residual · Σφₙ. The slack of
+    // 1e-5 · source covers the f32 arithmetic of 16³ cells.
     assert_eq!(s.absorbed, 0.0);
     let held: f64 = s.fluence.iter().map(|&f| f as f64).sum();
     let imbalance = (s.source - s.leaving).abs();

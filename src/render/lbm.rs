@@ -66,9 +66,9 @@ pub struct LbmStats {
     pub converged: bool,
     /// Light scattered by the particles, as power over the light's irradiance (voxel²).
     pub deposited: f64,
-    /// Per step at the end, in the same units: what the particles scattered into the lattice,
-    /// what streamed out of the grid and what the lattice absorbed. They balance once the
-    /// diffusion has converged.
+    /// Per step, in the same units: what the particles scatter into the lattice, and what the
+    /// last step streamed out of the grid and absorbed. source − leaving − absorbed is what
+    /// the grid gained over that step, at most `residual` × Σφ.
     pub source: f64,
     pub leaving: f64,
     pub absorbed: f64,
