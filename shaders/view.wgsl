@@ -123,7 +123,11 @@ fn view_step(px: vec2<u32>, k: u32, tile: u32) {
     let s = split_particles(value0, split, value1, ratio, clipped);
     let l1 = light_at(k, x1);
     let l0 = select(load_view_light(i).rgb, l1.color, skipped);
-    let i_d = s.rgb * segment_light(l0, l1.color, s.a) * P.light_color.rgb;
+    var i_d = s.rgb * segment_light(l0, l1.color, s.a) * P.light_color.rgb;
+    if (LBM) {
+        // Multiply scattered light from the illumination grid (lbm_view.wgsl), isotropic.
+        i_d += s.rgb * lbm_in_scattering(0.5 * (x0 + x1), split.y) * P.light_color.rgb;
+    }
     var color = load_view_color(i);
     var medium = vec3<f32>(1.0);
     if (MEDIUM) {

@@ -15,6 +15,7 @@ mod builtin;
 mod camera;
 pub mod environment;
 pub mod image;
+mod lbm;
 mod lighting;
 mod prepared;
 mod quality;
@@ -25,6 +26,7 @@ pub use builtin::{builtin, BuiltinScene, BUILTIN_SCENES};
 pub use camera::{Camera, ClipPlane, Projection, View, MAX_PITCH_DEG, VIEW_NAMES};
 pub use environment::{srgb_to_linear, EnvError, EnvMap};
 pub use image::{linear_to_srgb, OutputError, RenderedImage};
+pub use lbm::{LbmSettings, MAX_LBM_CELL_VOXELS, MAX_LBM_ITERATIONS};
 pub use lighting::{
     Environment, Light, Shading, MAX_CONCENTRATION, MAX_LIGHT_POLAR_DEG, MAX_LIGHT_RADIANCE, MAX_SOFTNESS, MAX_SPECULAR,
 };

@@ -89,6 +89,7 @@ fn representative_variants_build_on_the_device() {
         orthographic: false,
         gradient: caustica::scene::Gradient::Central,
         transport: caustica::scene::LightTransport::Beams,
+        lbm: true,
     };
     let mut backward = all;
     backward.transport = caustica::scene::LightTransport::Backward;

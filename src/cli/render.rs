@@ -123,6 +123,20 @@ pub fn render(args: &RenderArgs) -> Result<()> {
             s.rect[0],
             s.rect[1],
         );
+        if let Some(l) = &s.lbm {
+            println!(
+                "lbm: {}×{}×{} cells of {} voxels, {} steps, residual {:.1e}{}, {:.1} GPU ms (in the total), {:.1} MiB",
+                l.grid[0],
+                l.grid[1],
+                l.grid[2],
+                l.cell_voxels,
+                l.iterations,
+                l.residual,
+                if l.converged { "" } else { " (not converged)" },
+                l.gpu_ms,
+                mib(l.bytes),
+            );
+        }
     }
     eprintln!("wrote {} ({}×{})", args.output.display(), args.size.0, args.size.1);
     Ok(())

@@ -1,7 +1,7 @@
 //! `Features`: what a scene needs the renderer to model. Each feature is an `override` constant
 //! in the shaders; a disabled feature is constant-folded away and its buffers are not allocated.
 
-use crate::scene::{Gradient, LightTransport, Precision, Projection, Scene, Toggle};
+use crate::scene::{Gradient, LightTransport, MultipleScattering, Precision, Projection, Scene, Toggle};
 use crate::transfer::TransferFunctions;
 
 /// What one image needs. Derived from the scene ([`Features::for_scene`]).
@@ -25,6 +25,9 @@ pub struct Features {
     pub gradient: Gradient,
     /// Light transport: forward beams, or backward lookups.
     pub transport: LightTransport,
+    /// Multiple scattering by lattice-Boltzmann diffusion in an illumination grid
+    /// (`render::lbm`); only when the particles scatter.
+    pub lbm: bool,
 }
 
 /// Diagnostic buffers `--debug-view` can show instead of the image.
@@ -75,6 +78,7 @@ impl Features {
             // Without refraction no gradient is computed: one variant is enough.
             gradient: if refraction { q.gradient } else { Gradient::Central },
             transport: q.light_transport,
+            lbm: q.multiple_scattering == MultipleScattering::Lbm && tf.scatters(),
         }
     }
 
@@ -98,6 +102,7 @@ impl Features {
                     } else {
                         LightTransport::Beams
                     },
+                    lbm: false,
                 }
             })
             .collect()
@@ -119,6 +124,7 @@ impl Features {
             ("DEBUG_VIEW", debug.code() as f64),
             // Every safeguard on; see `Renderer` for the test-only way to switch them off.
             ("SAFEGUARDS_OFF", 0.0),
+            ("LBM", f(self.lbm)),
         ]
     }
 
@@ -139,6 +145,7 @@ impl Features {
             (self.orthographic, "orthographic"),
             (self.gradient == Gradient::Forward, "forward-gradient"),
             (self.transport == LightTransport::Backward, "backward"),
+            (self.lbm, "lbm"),
         ] {
             if on {
                 v.push(name);

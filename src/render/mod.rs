@@ -5,6 +5,7 @@
 pub mod bricks;
 mod features;
 pub mod gradient;
+pub mod lbm;
 mod params;
 pub mod safeguards;
 pub mod shaders;
@@ -125,6 +126,8 @@ pub struct RenderStats {
     pub precision: Precision,
     /// What was reduced to fit into device memory, one line each (empty normally).
     pub reductions: Vec<String>,
+    /// The lattice-Boltzmann pass, when the scene has one.
+    pub lbm: Option<Box<lbm::LbmStats>>,
 }
 
 pub struct RenderOutput {
@@ -141,6 +144,7 @@ pub struct Renderer {
     /// Scene textures of the last render, reused while the volume, transfer functions,
     /// sample distance and environment stay the same.
     textures: Option<upload::CachedTextures>,
+    lbm: Option<lbm::Pipelines>,
 }
 
 /// Out of device memory at 16-bit precision: halve the image size at most this many times,
@@ -154,6 +158,7 @@ impl Renderer {
             sources: HashMap::new(),
             pipelines: HashMap::new(),
             textures: None,
+            lbm: None,
         })
     }
 
@@ -253,13 +258,19 @@ impl Renderer {
             self.pipeline(Pass::Tiles, precision, features, req.debug_view, off)?,
             self.pipeline(Pass::Finish, precision, features, req.debug_view, off)?,
         ];
+        if features.lbm && self.lbm.is_none() {
+            self.lbm = Some(lbm::Pipelines::new(&self.ctx)?);
+        }
         state::run(
             &self.ctx,
             prepared,
             req,
             features,
             precision,
-            &pipelines,
+            state::Passes {
+                sweep: &pipelines,
+                lbm: self.lbm.as_ref().filter(|_| features.lbm),
+            },
             &mut self.textures,
         )
     }

@@ -9,6 +9,8 @@ pub const OPTICS: &str = include_str!("../../shaders/optics.wgsl");
 pub const BEAMS: &str = include_str!("../../shaders/beams.wgsl");
 pub const BACKWARD: &str = include_str!("../../shaders/backward.wgsl");
 pub const VIEW: &str = include_str!("../../shaders/view.wgsl");
+/// The view's side of the lattice-Boltzmann mode (its solver is `render::lbm`).
+pub const LBM_VIEW: &str = include_str!("../../shaders/lbm_view.wgsl");
 
 /// The compute passes of one render: init, then per plane the light and the view rays, then
 /// finish.
@@ -65,12 +67,16 @@ impl Pass {
                 "beams.wgsl",
                 "backward.wgsl",
                 "view.wgsl",
+                "lbm_view.wgsl",
                 self.file(),
             ]
             .map(read)
             .join("\n");
         }
-        format!("{COMMON}\n{OPTICS}\n{BEAMS}\n{BACKWARD}\n{VIEW}\n{}", self.body())
+        format!(
+            "{COMMON}\n{OPTICS}\n{BEAMS}\n{BACKWARD}\n{VIEW}\n{LBM_VIEW}\n{}",
+            self.body()
+        )
     }
 
     pub fn parse(self) -> Result<ShaderSource, GpuError> {

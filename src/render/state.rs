@@ -305,15 +305,23 @@ impl State {
     }
 }
 
+/// The pipelines of one render: the sweep's passes (`Pass::ALL` in order), and the lattice's
+/// when the scene uses it.
+pub(super) struct Passes<'a> {
+    pub sweep: &'a [Arc<ComputePipeline>; 5],
+    pub lbm: Option<&'a super::lbm::Pipelines>,
+}
+
 pub(super) fn run(
     ctx: &Arc<Context>,
     prepared: &PreparedScene,
     req: &RenderRequest,
     features: Features,
     precision: Precision,
-    pipelines: &[Arc<ComputePipeline>; 5],
+    passes: Passes,
     cache: &mut Option<CachedTextures>,
 ) -> Result<RenderOutput, RenderError> {
+    let Passes { sweep: pipelines, lbm } = passes;
     let (w, h) = (req.width, req.height);
     let max_2d = ctx.limits().max_image_dimension2_d;
     if w == 0 || h == 0 || w > max_2d || h > max_2d {
@@ -361,6 +369,23 @@ pub(super) fn run(
     let cached = cache
         .as_ref()
         .ok_or_else(|| RenderError::Setup("internal: scene textures missing".into()))?;
+    let lbm_light = match lbm {
+        Some(p) => Some(super::lbm::solve_for_scene(
+            ctx,
+            p,
+            prepared,
+            &view,
+            cached,
+            pending.take(),
+            light,
+        )?),
+        None => None,
+    };
+    let lbm_unused = super::lbm::unused(ctx)?;
+    let (lbm_grid, lbm_table) = match &lbm_light {
+        Some(l) => (&l.grid, &l.table),
+        None => (&lbm_unused.0, &lbm_unused.1),
+    };
 
     let mut params = Buffer::new_upload(
         ctx,
@@ -403,6 +428,8 @@ pub(super) fn run(
             ("env_sampler", Resource::Sampler(&t.env_sampler)),
             ("light_window", Resource::Buffer(&window_buffer)),
             ("bricks", Resource::Buffer(&t.bricks)),
+            ("lbm_grid", Resource::Buffer(lbm_grid)),
+            ("lbm_albedo", Resource::Buffer(lbm_table)),
         ];
         for (name, buffer) in &state.buffers {
             writes.push((*name, Resource::Buffer(buffer)));
@@ -448,7 +475,7 @@ pub(super) fn run(
         planes_run - 1
     };
     let bar = progress_bar(req.progress, dispatches as u64);
-    let mut gpu_ms = 0.0;
+    let mut gpu_ms = lbm_light.as_ref().map_or(0.0, |l| l.stats.gpu_ms);
     let mut plane = 1u32;
     let mut rec = Some(rec);
     let chunk = if req.cancel.is_some() {
@@ -526,12 +553,14 @@ pub(super) fn run(
                     planes: view.planes,
                     planes_run,
                     gpu_ms,
-                    ms_per_plane: gpu_ms / planes_run.max(1) as f64,
+                    ms_per_plane: (gpu_ms - lbm_light.as_ref().map_or(0.0, |l| l.stats.gpu_ms))
+                        / planes_run.max(1) as f64,
                     state_bytes: state.bytes,
                     light_grid: [layout.grid.width, layout.grid.height],
                     rect: [view.rect.width(), view.rect.height()],
                     precision,
                     reductions: Vec::new(),
+                    lbm: lbm_light.as_ref().map(|l| Box::new(l.stats.clone())),
                     // Memory figures are filled in by `Renderer::render`.
                     ..RenderStats::default()
                 },

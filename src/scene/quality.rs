@@ -117,7 +117,7 @@ pub enum MultipleScattering {
     /// width its path through the medium gives. Not available in the renderer yet.
     Spread,
     /// Bernabei et al.: lattice-Boltzmann diffusion (six directions) of the light the
-    /// particles scatter, in a coarser light volume. Not available in the renderer yet.
+    /// particles scatter, in a coarser light volume (`render::lbm`).
     Lbm,
 }
 
@@ -137,7 +137,7 @@ impl MultipleScattering {
     /// Whether the renderer implements this mode (the CPU reference's Monte Carlo transport,
     /// `reference::scatter`, is what the other modes will be measured against).
     pub fn is_available(self) -> bool {
-        self == MultipleScattering::None
+        self != MultipleScattering::Spread
     }
 }
 
@@ -184,6 +184,9 @@ pub struct Quality {
     /// out of written scenes when `none`, so scenes without scattering read as before.
     #[serde(skip_serializing_if = "MultipleScattering::is_none")]
     pub multiple_scattering: MultipleScattering,
+    /// The lattice-Boltzmann mode's grid and convergence (`[quality.lbm]`).
+    #[serde(skip_serializing_if = "super::LbmSettings::is_default")]
+    pub lbm: super::LbmSettings,
 }
 
 impl Default for Quality {
@@ -202,6 +205,7 @@ impl Default for Quality {
             beams_per_texel: 1.0,
             gradient: Gradient::Central,
             multiple_scattering: MultipleScattering::None,
+            lbm: super::LbmSettings::default(),
         }
     }
 }

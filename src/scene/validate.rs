@@ -40,6 +40,7 @@ impl Scene {
                 q.multiple_scattering.name()
             ));
         }
+        q.lbm.check().map_err(SceneError::Invalid)?;
         if !(0.0..=1.0).contains(&q.termination_opacity) {
             return bad("quality.termination_opacity must be in [0, 1]".into());
         }
