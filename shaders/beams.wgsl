@@ -734,12 +734,14 @@ fn beams_scattered_at(k: u32, p: vec3<f32>) -> vec3<f32> {
     return deposited_at(k % 3u, project(p)).color;
 }
 
-// The light a particle at p on plane k scatters into the direction `toward` (unit), relative
-// to isotropic scattering: the unscattered part of `total` (all the light there) weighted by
-// the phase function at the particle's g (single scattering), the scattered part as it is
-// (multiply scattered light is near-isotropic).
+// The light a particle at p on plane k sends into the direction `toward` (unit), relative to
+// isotropic scattering: the unscattered part of `total` (all the light there) through the
+// phase function at the particle's g for the fraction ω it scatters (single scattering), the
+// rest shaded as without scattering (the colour transfer function's diffuse particles); the
+// scattered part as it is (multiply scattered light is near-isotropic).
 fn spread_seen(k: u32, p: vec3<f32>, toward: vec3<f32>, value: f32, total: vec3<f32>) -> vec3<f32> {
     let s = beams_scattered_at(k, p);
-    let g = scatter_coefficients(value).y;
-    return max(total - s, vec3<f32>(0.0)) * hg_relative(dot(P.light_dir.xyz, toward), g) + s;
+    let sc = scatter_coefficients(value);
+    let phase = mix(1.0, hg_relative(dot(P.light_dir.xyz, toward), sc.y), clamp(sc.x, 0.0, 1.0));
+    return max(total - s, vec3<f32>(0.0)) * phase + s;
 }
