@@ -78,6 +78,16 @@ fn drift(pos: vec3<f32>, v: vec3<f32>, z: f32) -> vec3<f32> {
 // the 2 × 2 texels it overlaps, so every beam costs the same whatever it spreads over; the
 // light at a point is the sum of the levels' bilinear lookups.
 const ACC_LEVELS: u32 = 3u;
+// The spread mode's pyramid (only scattered light, which spreads further): texels of up to
+// 2^(SCATTER_LEVELS-1) pixels.
+const SCATTER_LEVELS: u32 = 7u;
+
+fn acc_levels() -> u32 {
+    if (SCATTER) {
+        return SCATTER_LEVELS;
+    }
+    return ACC_LEVELS;
+}
 
 // Texels of level m (its side: the image's, halved m times, rounded up).
 fn level_size(m: u32) -> vec2<u32> {
@@ -98,7 +108,7 @@ fn level_offset(m: u32) -> u32 {
 // Index of the first channel of texel q of level m of light slot `slot`.
 fn acc_texel(slot: u32, m: u32, q: vec2<u32>) -> u32 {
     let channels = P.tiles.w;
-    let plane = level_offset(ACC_LEVELS);
+    let plane = level_offset(acc_levels());
     return ((slot * plane + level_offset(m)) + q.y * level_size(m).x + q.x) * channels;
 }
 
@@ -152,7 +162,7 @@ fn add_light(texel: u32, amount: vec3<f32>, weight: f32, direction: vec3<f32>, d
 fn deposit(slot: u32, c: vec2<f32>, w_in: vec2<f32>, w_min: f32, amount: vec3<f32>, direction: vec3<f32>, seed: u32) {
     var w = max(w_in, vec2<f32>(w_min));
     let widest = max(w.x, w.y);
-    let m = min(u32(max(ceil(log2(max(widest, 1.0))), 0.0)), ACC_LEVELS - 1u);
+    let m = min(u32(max(ceil(log2(max(widest, 1.0))), 0.0)), acc_levels() - 1u);
     let s = f32(1u << m);
     // Wider than the coarsest level's texels (rare: light spread over more than 2^(levels-1)
     // pixels by one beam) the box is split between two texels all the same: its power stays
@@ -209,7 +219,7 @@ fn acc_load(slot: u32, m: u32, q: vec2<i32>) -> LightSample {
 // over the pyramid's levels of their bilinear lookups.
 fn deposited_at(slot: u32, t: vec2<f32>) -> LightSample {
     var sum = LightSample(vec3<f32>(0.0), vec3<f32>(0.0));
-    for (var m = 0u; m < ACC_LEVELS; m++) {
+    for (var m = 0u; m < acc_levels(); m++) {
         let tl = (t + vec2<f32>(0.5)) / f32(1u << m) - vec2<f32>(0.5);
         let lo = floor(tl);
         let f = tl - lo;
@@ -228,7 +238,7 @@ fn deposited_at(slot: u32, t: vec2<f32>) -> LightSample {
 // zeroed by each pixel they cover).
 fn acc_clear(slot: u32, px: vec2<u32>) {
     let channels = P.tiles.w;
-    for (var m = 0u; m < ACC_LEVELS; m++) {
+    for (var m = 0u; m < acc_levels(); m++) {
         let base = acc_texel(slot, m, px >> vec2<u32>(m));
         for (var c = 0u; c < channels; c++) {
             atomicStore(&light_acc[base + c], 0u);
@@ -285,6 +295,10 @@ fn beams_init(ij: vec2<u32>) {
     b.shadow = z0;
     b.power = vec3<f32>(1.0);
     store_beam(index, 0u, b);
+    if (SCATTER) {
+        beam_scatter[2u * index] = vec4<f32>(0.0);
+        beam_scatter[2u * index + 1u] = vec4<f32>(0.0);
+    }
     if (!REFRACTION) {
         return;
     }
@@ -402,6 +416,7 @@ fn beams_step(ij: vec2<u32>, k: u32) {
     let l = length(b.pos - x0);
     let value = sample_value(b.pos);
     let lost_before = b.power;
+    let value_front = b.value;
     if (max(b.power.r, max(b.power.g, b.power.b)) > 0.0) {
         let mid = sample_value(0.5 * (x0 + b.pos));
         b.power *= segment_transmittance(b.value, mid, value, l / ds, is_clipped(0.5 * (x0 + b.pos)));
@@ -464,6 +479,9 @@ fn beams_step(ij: vec2<u32>, k: u32) {
         b.shadow = f.w;
     }
 
+    if (SCATTER) {
+        spread_step(index, k, b, lost_before, x0, value_front, du, dv);
+    }
     if (REFRACTION) {
         deposit_beam(k, b, du, dv, hash(index ^ hash(k ^ 0x5bd1e995u)));
         let ix = index_at(b.pos);
@@ -507,8 +525,11 @@ fn beams_light_at(k: u32, p: vec3<f32>) -> LightSample {
         let lo = floor(g);
         let f = g - lo;
         let a = vec2<i32>(lo);
-        let c = mix(mix(beam_cell_power(k, a), beam_cell_power(k, a + vec2<i32>(1, 0)), f.x),
+        var c = mix(mix(beam_cell_power(k, a), beam_cell_power(k, a + vec2<i32>(1, 0)), f.x),
                     mix(beam_cell_power(k, a + vec2<i32>(0, 1)), beam_cell_power(k, a + vec2<i32>(1, 1)), f.x), f.y);
+        if (SCATTER) {
+            c += beams_scattered_at(k, p);
+        }
         return LightSample(budgeted(c), P.light_dir.xyz);
     }
     let t = project(p);
@@ -554,4 +575,178 @@ fn outside_fraction(q: vec2<f32>, r: vec4<f32>) -> f32 {
     let ox = max(min(q.x + 1.0, r.z) - max(q.x, r.x), 0.0);
     let oy = max(min(q.y + 1.0, r.w) - max(q.y, r.y), 0.0);
     return 1.0 - ox * oy;
+}
+
+// ---------------------------------------------------------------------------------------
+// Multiple scattering, spread mode (Premoze et al. 2004). The beam's power is the light that
+// has not scattered (sharp: shadows, caustics). What the particles take out of it is split by
+// the albedo ω into absorbed and scattered light; each beam carries its scattered light on,
+// losing only what the medium absorbs, as a cloud about its path whose spread follows the
+// exact moment equations of the transport (`transfer::scattering::SpreadMoments`) with the
+// local scattering b = ω·extinction and anisotropy g. On each plane the cloud is deposited
+// onto a pyramid of SCATTER_LEVELS levels with the cloud's variance.
+
+// ω (x) and g (y) at data value v, linear between the table's entries.
+fn scatter_coefficients(v: f32) -> vec2<f32> {
+    let n = arrayLength(&scatter_table);
+    let t = clamp(v, 0.0, 1.0) * f32(n - 1u);
+    let i = min(u32(t), n - 2u);
+    let f = t - f32(i);
+    return mix(scatter_table[i].xy, scatter_table[i + 1u].xy, f);
+}
+
+// Henyey–Greenstein phase function relative to isotropic scattering (`hg_relative`); exactly 1
+// for g = 0.
+fn hg_relative(cos_theta: f32, g: f32) -> f32 {
+    let d = 1.0 + g * g - 2.0 * g * cos_theta;
+    return (1.0 - g * g) / (d * sqrt(d));
+}
+
+// (1 − e^−x) / x, 1 at 0: the mean of e^−u over u in [0, x] (x may be negative).
+fn spread_mean_exp(x: f32) -> f32 {
+    if (abs(x) < 1e-3) {
+        return 1.0 - x * (0.5 - x / 6.0);
+    }
+    return (1.0 - exp(-x)) / x;
+}
+
+// C = E[r⊥·d⊥] after a path t from (1 − P₂ = q0, C = c0) with y1 = k₁t, y2 = k₂t (k₁ = b(1 − g),
+// k₂ = b(1 − g²)): the exact solution of dC/ds = (2/3)(1 − P₂) − k₁C with P₂ = (1 − q0)e^(−k₂s).
+fn spread_cross(q0: f32, c0: f32, y1: f32, y2: f32, t: f32) -> f32 {
+    let e1 = exp(-y1);
+    return c0 * e1 + (2.0 / 3.0) * t * (spread_mean_exp(y1) - (1.0 - q0) * e1 * spread_mean_exp(y2 - y1));
+}
+
+// The moments (1 − P₂, C, R, ∫b ds) advanced over a path h with scattering optical depth bh and
+// anisotropy g: 1 − P₂ and C exactly, R = R + 2∫C by Simpson's rule on the exact C (C is
+// smooth on the scale 1/k₁, and a segment is a small part of it; the closed form of R would
+// cancel to nothing in f32).
+fn spread_moments(m: vec4<f32>, bh: f32, g: f32, h: f32) -> vec4<f32> {
+    let y1 = bh * (1.0 - g);
+    let y2 = bh * (1.0 - g * g);
+    let q = m.x * exp(-y2) + y2 * spread_mean_exp(y2);
+    let c_mid = spread_cross(m.x, m.y, 0.5 * y1, 0.5 * y2, 0.5 * h);
+    let c_end = spread_cross(m.x, m.y, y1, y2, h);
+    let r = m.z + (h / 3.0) * (m.y + 4.0 * c_mid + c_end);
+    return vec4<f32>(q, c_end, r, m.w + bh);
+}
+
+// Adds `amount` at the point c (continuous pixel coordinates, pixel u spans [u, u + 1)) to
+// level m of slot `slot`, split over the 2 × 2 texels around it so that the level's bilinear
+// lookup keeps its centre. Returns nothing; see `spread_variance` for the spread it leaves.
+fn deposit_point(slot: u32, m: u32, c: vec2<f32>, amount: vec3<f32>, seed: u32) {
+    let s = f32(1u << m);
+    let cl = c / s - vec2<f32>(0.5);
+    let q0 = floor(cl);
+    let f = cl - q0;
+    let a = amount / (s * s);
+    for (var n = 0u; n < 4u; n++) {
+        let o = vec2<u32>(n & 1u, n >> 1u);
+        let q = vec2<i32>(q0) + vec2<i32>(o);
+        let weight = select(1.0 - f.x, f.x, o.x == 1u) * select(1.0 - f.y, f.y, o.y == 1u);
+        if (weight > 0.0 && level_texel_in_rect(m, q)) {
+            let h = hash(seed ^ (u32(q.x) * 73856093u) ^ (u32(q.y) * 19349663u) ^ (m * 83492791u));
+            add_light(acc_texel(slot, m, vec2<u32>(q)), a, weight, P.light_dir.xyz, f32(h & 0xffffu) / 65536.0);
+        }
+    }
+}
+
+// Variance per axis (pixels², averaged over the two axes) of what `deposit_point` leaves on
+// level m as the pyramid reads it back: the split's own f(1 − f)s² plus the bilinear tent's
+// s²/6.
+fn spread_variance(m: u32, c: vec2<f32>) -> f32 {
+    let s = f32(1u << m);
+    let f = fract(c / s - vec2<f32>(0.5));
+    let split = 0.5 * (f.x * (1.0 - f.x) + f.y * (1.0 - f.y));
+    return s * s * (split + 1.0 / 6.0);
+}
+
+// Deposits a cloud of light with variance `variance` per axis (pixels²) centred at c: split
+// between the two adjacent levels whose deposits bracket the variance, in the proportion
+// that gives it (a mixture's variance is the weighted mean of its parts'). Below level 0's
+// least it is level 0's; beyond the coarsest level's, the coarsest level's (narrower).
+fn deposit_cloud(slot: u32, c: vec2<f32>, variance: f32, amount: vec3<f32>, seed: u32) {
+    var lo = 0u;
+    var beta = 0.0;
+    var v_lo = spread_variance(0u, c);
+    if (variance > v_lo) {
+        lo = SCATTER_LEVELS - 1u;
+        for (var m = 0u; m + 1u < SCATTER_LEVELS; m++) {
+            let v_hi = spread_variance(m + 1u, c);
+            if (variance <= v_hi) {
+                lo = m;
+                beta = (variance - v_lo) / (v_hi - v_lo);
+                break;
+            }
+            v_lo = v_hi;
+        }
+    }
+    if (beta < 1.0) {
+        deposit_point(slot, lo, c, amount * (1.0 - beta), seed);
+    }
+    if (beta > 0.0) {
+        deposit_point(slot, lo + 1u, c, amount * beta, seed ^ 0x9e3779b9u);
+    }
+}
+
+// One segment of the spread mode for beam `index`, whose unscattered power went from
+// `u_before` to b.power over the segment from x0 to b.pos (front value `value_front`, back
+// value b.value); deposits its scattered light on plane k. du, dv: the beam's cell.
+fn spread_step(index: u32, k: u32, b: Beam, u_before: vec3<f32>, x0: vec3<f32>, value_front: f32, du: vec3<f32>, dv: vec3<f32>) {
+    let n = beam_count();
+    let read = 2u * (((k - 1u) % 2u) * n + index);
+    let write = 2u * ((k % 2u) * n + index);
+    let a = beam_scatter[read];
+    var scattered = a.rgb;
+    let l = length(b.pos - x0);
+    let ratio = l / P.plane.y;
+    let mid = 0.5 * (x0 + b.pos);
+    let split = segment_split(value_front, sample_value(mid), b.value);
+    let alpha = split_particles(value_front, split, b.value, ratio, is_clipped(mid)).a;
+    var t_medium = vec3<f32>(1.0);
+    if (MEDIUM) {
+        t_medium = split_medium(value_front, split, b.value, ratio);
+    }
+    let tau = -log(max(1.0 - alpha, 1e-30));
+    let sc = scatter_coefficients(split.y);
+    let albedo = clamp(sc.x, 0.0, 1.0);
+    // Scattered light goes on losing only what is absorbed: (1 − ω) of the extinction, and
+    // the medium; the unscattered light gives it ω of what the particles took.
+    scattered = scattered * exp(-(1.0 - albedo) * tau) * t_medium + u_before * alpha * albedo * t_medium;
+    let m = spread_moments(beam_scatter[read + 1u], albedo * tau, sc.y, l);
+    beam_scatter[write] = vec4<f32>(scattered, m.w);
+    beam_scatter[write + 1u] = m;
+    if (max(scattered.r, max(scattered.g, scattered.b)) <= 0.0) {
+        return;
+    }
+    // The scattered light's own spread: R is that of all the light, whose unscattered part
+    // 1 − (1 − e^−∫b) stays on the axis.
+    let frac = m.w * spread_mean_exp(m.w);
+    let spread = 0.5 * m.z / max(frac, 1e-12);
+    // In pixels² on this plane (a pixel's side there: sqrt(pixel_area)), plus the cell's own
+    // box footprint.
+    let c = project(b.pos) + vec2<f32>(0.5);
+    let pu = project(b.pos + du) - project(b.pos);
+    let pv = project(b.pos + dv) - project(b.pos);
+    let cell = (dot(pu, pu) + dot(pv, pv)) / 24.0;
+    let variance = spread / pixel_area(b.pos.z) + cell;
+    let d = P.light_dir.xyz;
+    deposit_cloud(k % 3u, c, variance, scattered * deposit_scale(b.pos.z, d), hash(index ^ hash(k ^ 0x27d4eb2fu)));
+}
+
+// The scattered light on plane k at the view-space point p (fluence relative to the source).
+fn beams_scattered_at(k: u32, p: vec3<f32>) -> vec3<f32> {
+    return deposited_at(k % 3u, project(p)).color;
+}
+
+// The light a particle at p on plane k sends into the direction `toward` (unit), relative to
+// isotropic scattering: the unscattered part of `total` (all the light there) through the
+// phase function at the particle's g for the fraction ω it scatters (single scattering), the
+// rest shaded as without scattering (the colour transfer function's diffuse particles); the
+// scattered part as it is (multiply scattered light is near-isotropic).
+fn spread_seen(k: u32, p: vec3<f32>, toward: vec3<f32>, value: f32, total: vec3<f32>) -> vec3<f32> {
+    let s = beams_scattered_at(k, p);
+    let sc = scatter_coefficients(value);
+    let phase = mix(1.0, hg_relative(dot(P.light_dir.xyz, toward), sc.y), clamp(sc.x, 0.0, 1.0));
+    return max(total - s, vec3<f32>(0.0)) * phase + s;
 }

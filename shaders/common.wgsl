@@ -17,6 +17,7 @@ override ORTHOGRAPHIC: bool = false;
 override BEAMS: bool = true;                // light transport: forward beams (true) or backward lookups
 override F32_STATE: bool = false;           // light, colour and medium state in 32-bit floats
 override DEBUG_VIEW: u32 = 0u;              // 0 image, 1 light, 2 light direction, 3 concentration, 4 medium
+override SCATTER: bool = false;             // multiple scattering, spread mode (beams without refraction)
 // Safeguards switched off, one bit each (SG_* below). Always 0 in renders; tests set single
 // bits to show that each safeguard is needed. Constant-folded like the features above.
 override SAFEGUARDS_OFF: u32 = 0u;
@@ -153,6 +154,12 @@ struct Immediates {
 // arguments (x, y, z; x counts the tiles).
 @group(0) @binding(24) var<storage, read_write> tile_lists: array<u32>;
 @group(0) @binding(25) var<storage, read_write> tile_args: array<atomic<u32>>;
+// Spread mode (SCATTER): per data value (the pre-integration tables' lattice) the albedo ω
+// and the anisotropy g; per beam and half of the ping-pong pair two vec4: the scattered
+// power (rgb) and the scattering optical depth along its path, then the spread moments
+// (1 − P₂, C, R; `transfer::scattering::SpreadMoments`).
+@group(0) @binding(26) var<storage, read> scatter_table: array<vec4<f32>>;
+@group(0) @binding(27) var<storage, read_write> beam_scatter: array<vec4<f32>>;
 
 var<immediate> I: Immediates;
 

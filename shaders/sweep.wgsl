@@ -66,7 +66,7 @@ fn tiles_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_in
     if (t >= P.tiles.y) {
         return;
     }
-    if (BEAMS && REFRACTION) {
+    if (BEAMS && (REFRACTION || SCATTER)) {
         // Plane k+1 deposits into the slot that plane k-2 used; its last reader was the view
         // dispatch of plane k-1. Every tile clears, listed or not: deposits land anywhere.
         let px = tile_pixel(t, li);

@@ -51,7 +51,12 @@ fn view_init(px: vec2<u32>) {
 // The light at the ray's start on plane 0, once plane 0's light is complete.
 fn view_first_light(px: vec2<u32>) {
     let i = pixel_index(px);
-    store_view_light(i, vec4<f32>(light_at(0u, view_position(px, i, 0u)).color, 0.0));
+    let x = view_position(px, i, 0u);
+    var light = light_at(0u, x).color;
+    if (SCATTER) {
+        light = spread_seen(0u, x, -primary_dir(vec2<f32>(px)), view_aux[i].y, light);
+    }
+    store_view_light(i, vec4<f32>(light, 0.0));
 }
 
 // The ray of pixel i (in rect tile `tile`) ends.
@@ -122,8 +127,13 @@ fn view_step(px: vec2<u32>, k: u32, tile: u32) {
     let split = segment_split(value0, sample_value(0.5 * (x0 + x1)), value1);
     let s = split_particles(value0, split, value1, ratio, clipped);
     let l1 = light_at(k, x1);
-    let l0 = select(load_view_light(i).rgb, l1.color, skipped);
-    var i_d = s.rgb * segment_light(l0, l1.color, s.a) * P.light_color.rgb;
+    var light1 = l1.color;
+    if (SCATTER) {
+        // What the particles scatter toward the viewer (beams.wgsl, spread mode).
+        light1 = spread_seen(k, x1, -dir, value1, light1);
+    }
+    let l0 = select(load_view_light(i).rgb, light1, skipped);
+    var i_d = s.rgb * segment_light(l0, light1, s.a) * P.light_color.rgb;
     if (LBM) {
         // Multiply scattered light from the illumination grid (lbm_view.wgsl), isotropic.
         i_d += s.rgb * lbm_in_scattering(0.5 * (x0 + x1), split.y) * P.light_color.rgb;
@@ -185,7 +195,7 @@ fn view_step(px: vec2<u32>, k: u32, tile: u32) {
     aux.y = value1;
     aux.z = f32(k + 1u);
     store_view_color(i, color);
-    store_view_light(i, vec4<f32>(l1.color, 0.0));
+    store_view_light(i, vec4<f32>(light1, 0.0));
     // Early termination once nothing behind can show through.
     let through = (1.0 - color.a) * max(medium.r, max(medium.g, medium.b));
     if (through < 1.0 - P.shading.z) {

@@ -19,7 +19,8 @@ const DEBUG_VIEWS: [DebugView; 5] = [
 #[test]
 fn every_variant_compiles_and_validates() {
     // Every feature combination (both transports) at both precisions for the image, and every
-    // diagnostic view of each: passes × 256 × (2 + 4) variants.
+    // diagnostic view of each: passes × (256 + 64 with the spread mode: beams without
+    // refraction) × (2 + 4) variants.
     let mut count = 0;
     for pass in Pass::ALL {
         let source = pass.parse().unwrap_or_else(|e| panic!("{e}"));
@@ -36,7 +37,7 @@ fn every_variant_compiles_and_validates() {
             }
         }
     }
-    assert_eq!(count, Pass::ALL.len() * 256 * 6);
+    assert_eq!(count, Pass::ALL.len() * (256 + 64) * 6);
 }
 
 #[test]
@@ -90,10 +91,20 @@ fn representative_variants_build_on_the_device() {
         gradient: caustica::scene::Gradient::Central,
         transport: caustica::scene::LightTransport::Beams,
         lbm: true,
+        scatter: false,
     };
     let mut backward = all;
     backward.transport = caustica::scene::LightTransport::Backward;
-    let mut variants = vec![Features::default(), all, backward];
+    // The spread mode with everything it runs with (beams, no refraction).
+    let spread = Features {
+        refraction: false,
+        specular: false,
+        intensity_correction: false,
+        eta_volume: false,
+        scatter: true,
+        ..all
+    };
+    let mut variants = vec![Features::default(), all, backward, spread];
     for i in 0..9 {
         let mut f = Features::default();
         match i {

@@ -28,6 +28,9 @@ pub struct Features {
     /// Multiple scattering by lattice-Boltzmann diffusion in an illumination grid
     /// (`render::lbm`); only when the particles scatter.
     pub lbm: bool,
+    /// Multiple scattering, spread mode: beams carry scattered light and its spread (forward
+    /// beams without refraction only).
+    pub scatter: bool,
 }
 
 /// Diagnostic buffers `--debug-view` can show instead of the image.
@@ -79,11 +82,36 @@ impl Features {
             gradient: if refraction { q.gradient } else { Gradient::Central },
             transport: q.light_transport,
             lbm: q.multiple_scattering == MultipleScattering::Lbm && tf.scatters(),
+            scatter: Self::spread(scene, tf, refraction),
         }
     }
 
-    /// Every combination of the boolean shader switches (for shader validation).
+    /// Whether the spread mode runs: asked for, or `auto` with transfer functions that
+    /// scatter, and the forward beams without refraction (`Scene::validate` refuses spread
+    /// with the backward transport; the renderer with refraction).
+    fn spread(scene: &Scene, tf: &TransferFunctions, refraction: bool) -> bool {
+        let q = &scene.quality;
+        let wanted = match q.multiple_scattering {
+            MultipleScattering::Spread => true,
+            MultipleScattering::Auto => tf.scatters(),
+            MultipleScattering::None | MultipleScattering::Lbm => false,
+        };
+        wanted && q.light_transport == LightTransport::Beams && !refraction
+    }
+
+    /// Every combination of the boolean shader switches (for shader validation), and the
+    /// spread mode with each combination it runs with (beams, no refraction).
     pub fn all_combinations() -> Vec<Features> {
+        let plain = Self::combinations_without_scatter();
+        let spread = plain
+            .iter()
+            .filter(|f| f.transport == LightTransport::Beams && !f.refraction)
+            .map(|f| Features { scatter: true, ..*f })
+            .collect::<Vec<_>>();
+        plain.into_iter().chain(spread).collect()
+    }
+
+    fn combinations_without_scatter() -> Vec<Features> {
         (0u32..256)
             .map(|bits| {
                 let b = |i: u32| bits & (1 << i) != 0;
@@ -103,6 +131,7 @@ impl Features {
                         LightTransport::Beams
                     },
                     lbm: false,
+                    scatter: false,
                 }
             })
             .collect()
@@ -122,6 +151,7 @@ impl Features {
             ("BEAMS", f(self.transport == LightTransport::Beams)),
             ("F32_STATE", f(precision == Precision::F32)),
             ("DEBUG_VIEW", debug.code() as f64),
+            ("SCATTER", f(self.scatter)),
             // Every safeguard on; see `Renderer` for the test-only way to switch them off.
             ("SAFEGUARDS_OFF", 0.0),
             ("LBM", f(self.lbm)),
@@ -146,6 +176,7 @@ impl Features {
             (self.gradient == Gradient::Forward, "forward-gradient"),
             (self.transport == LightTransport::Backward, "backward"),
             (self.lbm, "lbm"),
+            (self.scatter, "spread"),
         ] {
             if on {
                 v.push(name);

@@ -85,9 +85,12 @@ impl Layout {
 /// Levels of the pyramid the beams deposit their light on (`ACC_LEVELS` in beams.wgsl).
 pub const ACC_LEVELS: u32 = 3;
 
-/// Texels of one plane of the deposit pyramid of a `w`×`h` image.
-fn pyramid_texels(w: u32, h: u32) -> u64 {
-    (0..ACC_LEVELS)
+/// Levels of the spread mode's pyramid of scattered light (`SCATTER_LEVELS` in beams.wgsl).
+pub const SCATTER_LEVELS: u32 = 7;
+
+/// Texels of one plane of the deposit pyramid of a `w`×`h` image with `levels` levels.
+fn pyramid_texels(w: u32, h: u32, levels: u32) -> u64 {
+    (0..levels)
         .map(|m| w.div_ceil(1 << m) as u64 * h.div_ceil(1 << m) as u64)
         .sum()
 }
@@ -263,7 +266,8 @@ impl State {
         let beams = features.transport == LightTransport::Beams;
         let refraction = features.refraction;
         let back_dir = !beams && (refraction || features.intensity_correction);
-        let sizes: [(&str, u64, bool); 15] = [
+        let levels = if features.scatter { SCATTER_LEVELS } else { ACC_LEVELS };
+        let sizes: [(&str, u64, bool); 16] = [
             ("view_light", pixels * rgba, true),
             ("view_ray", pixels * 16, refraction),
             ("view_aux", pixels * 16, true),
@@ -274,9 +278,10 @@ impl State {
             ("beam_power", 2 * cells * rgba, beams),
             (
                 "light_acc",
-                LIGHT_RING * pyramid_texels(view.width, view.height) * layout.channels as u64 * 4,
-                beams && refraction,
+                LIGHT_RING * pyramid_texels(view.width, view.height, levels) * layout.channels as u64 * 4,
+                beams && (refraction || features.scatter),
             ),
+            ("beam_scatter", 2 * cells * 32, features.scatter),
             ("back_light", LIGHT_RING * cells * rgba, !beams),
             ("back_dir", LIGHT_RING * cells * 16, back_dir),
             ("image_out", pixels * 16, true),
@@ -331,6 +336,13 @@ pub(super) fn run(
     }
     let vol = &prepared.volume;
     let scene = &prepared.scene;
+    if scene.quality.multiple_scattering == crate::scene::MultipleScattering::Spread && !features.scatter {
+        return Err(RenderError::Setup(
+            "quality.multiple_scattering = \"spread\" runs without refraction only: this scene refracts \
+             (set quality.refraction = \"off\" or multiple_scattering = \"none\")"
+                .into(),
+        ));
+    }
     let view = ViewSetup::new(scene, vol.dims, vol.spacing, w, h).map_err(RenderError::Setup)?;
     let planes_run = if req.debug_view == DebugView::Image || req.debug_view == DebugView::Medium {
         view.planes
@@ -408,6 +420,19 @@ pub(super) fn run(
         vk::BufferUsageFlags::STORAGE_BUFFER,
     )?;
     window_buffer.write(bytemuck::cast_slice(&windows))?;
+    // ω and g per data value for the spread mode (a placeholder entry pair otherwise).
+    let table = if features.scatter {
+        crate::transfer::scattering::scattering_table(&prepared.tf)
+    } else {
+        vec![[0.0; 4]; 2]
+    };
+    let mut scatter_table = Buffer::new_upload(
+        ctx,
+        "scatter table",
+        (table.len() * 16) as u64,
+        vk::BufferUsageFlags::STORAGE_BUFFER,
+    )?;
+    scatter_table.write(bytemuck::cast_slice(&table))?;
     let bytes = w as u64 * h as u64 * 16;
     let mut readback = Buffer::new_readback(ctx, "output readback", bytes)?;
     let ts = Timestamps::new(ctx, 2)?;
@@ -427,6 +452,7 @@ pub(super) fn run(
             ("env_tex", Resource::Image(&t.env)),
             ("env_sampler", Resource::Sampler(&t.env_sampler)),
             ("light_window", Resource::Buffer(&window_buffer)),
+            ("scatter_table", Resource::Buffer(&scatter_table)),
             ("bricks", Resource::Buffer(&t.bricks)),
             ("lbm_grid", Resource::Buffer(lbm_grid)),
             ("lbm_albedo", Resource::Buffer(lbm_table)),
@@ -573,17 +599,21 @@ pub(super) fn run(
 mod tests {
     #[test]
     fn pyramid_levels_match_the_shader() {
-        let line = format!("const ACC_LEVELS: u32 = {}u;", super::ACC_LEVELS);
-        assert!(
-            crate::render::shaders::BEAMS.contains(&line),
-            "beams.wgsl lacks '{line}'"
-        );
+        for line in [
+            format!("const ACC_LEVELS: u32 = {}u;", super::ACC_LEVELS),
+            format!("const SCATTER_LEVELS: u32 = {}u;", super::SCATTER_LEVELS),
+        ] {
+            assert!(
+                crate::render::shaders::BEAMS.contains(&line),
+                "beams.wgsl lacks '{line}'"
+            );
+        }
     }
 
     #[test]
     fn a_pyramid_plane_is_a_third_larger_than_the_image() {
         // 64² + 32² + 16² texels.
-        assert_eq!(super::pyramid_texels(64, 64), 4096 + 1024 + 256);
-        assert_eq!(super::pyramid_texels(5, 3), 15 + 6 + 2);
+        assert_eq!(super::pyramid_texels(64, 64, super::ACC_LEVELS), 4096 + 1024 + 256);
+        assert_eq!(super::pyramid_texels(5, 3, super::ACC_LEVELS), 15 + 6 + 2);
     }
 }

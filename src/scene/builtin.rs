@@ -57,10 +57,16 @@ const TABLE: &[(&str, &str, &str, &str)] = &[
         include_str!("../../transfer_functions/thin-structures.json"),
         "faint thin legs, visible through refraction and caustics on a checkered floor (paper Fig. 11 idea)",
     ),
+    (
+        "milk-glass",
+        "ball-lens",
+        include_str!("../../transfer_functions/milk-glass.json"),
+        "milk-glass ball (albedo 0.97, g 0.6) above a diffuse ground: the light it scatters glows in its shadow (multiple scattering, spread mode)",
+    ),
 ];
 
 /// Names of the built-in scenes, in `caustica scenes` order.
-pub const BUILTIN_SCENES: [&str; 7] = [
+pub const BUILTIN_SCENES: [&str; 8] = [
     "ball-lens",
     "glass-beer",
     "glass-juice",
@@ -68,6 +74,7 @@ pub const BUILTIN_SCENES: [&str; 7] = [
     "supernova",
     "luneburg",
     "thin-structures",
+    "milk-glass",
 ];
 
 fn camera(yaw_deg: f32, pitch_deg: f32, distance: f32) -> Camera {
@@ -98,7 +105,7 @@ pub fn builtin(name: &str) -> Result<BuiltinScene, SceneError> {
     };
     let tf = TransferFunctions::from_json(tf_json, Path::new(&format!("transfer_functions/{name}.json")))?;
     let (camera, light) = match *name {
-        "ball-lens" => (camera(20.0, 35.0, 2.6), light(55.0, -45.0, 0.02)),
+        "ball-lens" | "milk-glass" => (camera(20.0, 35.0, 2.6), light(55.0, -45.0, 0.02)),
         "supernova" => (camera(0.0, 22.0, 2.7), light(40.0, 0.0, 0.05)),
         "luneburg" => (camera(25.0, 28.0, 2.6), light(38.0, 0.0, 0.02)),
         "thin-structures" => (camera(30.0, 35.0, 2.5), light(40.0, 20.0, 0.03)),

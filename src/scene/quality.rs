@@ -110,11 +110,14 @@ impl LightTransport {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum MultipleScattering {
-    /// Scattered light is lost: the particles show what they scatter toward the viewer once.
+    /// `spread` when the transfer functions scatter (an albedo above 0 where there are
+    /// particles) and the light is neither refracted nor carried backward; `none` otherwise.
     #[default]
+    Auto,
+    /// Scattered light is lost: the particles show what they scatter toward the viewer once.
     None,
     /// Premoze et al. 2004: the light scattered out of each beam spreads around it by the
-    /// width its path through the medium gives. Not available in the renderer yet.
+    /// width its path through the medium gives (forward beams, without refraction).
     Spread,
     /// Bernabei et al.: lattice-Boltzmann diffusion (six directions) of the light the
     /// particles scatter, in a coarser light volume (`render::lbm`).
@@ -124,20 +127,15 @@ pub enum MultipleScattering {
 impl MultipleScattering {
     pub fn name(self) -> &'static str {
         match self {
+            MultipleScattering::Auto => "auto",
             MultipleScattering::None => "none",
             MultipleScattering::Spread => "spread",
             MultipleScattering::Lbm => "lbm",
         }
     }
 
-    pub fn is_none(&self) -> bool {
-        *self == MultipleScattering::None
-    }
-
-    /// Whether the renderer implements this mode (the CPU reference's Monte Carlo transport,
-    /// `reference::scatter`, is what the other modes will be measured against).
-    pub fn is_available(self) -> bool {
-        self != MultipleScattering::Spread
+    pub fn is_auto(&self) -> bool {
+        *self == MultipleScattering::Auto
     }
 }
 
@@ -181,8 +179,8 @@ pub struct Quality {
     /// Reconstruction of ∇η.
     pub gradient: Gradient,
     /// How light scattered by the particles travels on (see [`MultipleScattering`]); left
-    /// out of written scenes when `none`, so scenes without scattering read as before.
-    #[serde(skip_serializing_if = "MultipleScattering::is_none")]
+    /// out of written scenes when `auto`, so scenes without scattering read as before.
+    #[serde(skip_serializing_if = "MultipleScattering::is_auto")]
     pub multiple_scattering: MultipleScattering,
     /// The lattice-Boltzmann mode's grid and convergence (`[quality.lbm]`).
     #[serde(skip_serializing_if = "super::LbmSettings::is_default")]
@@ -204,7 +202,7 @@ impl Default for Quality {
             light_transport: LightTransport::Beams,
             beams_per_texel: 1.0,
             gradient: Gradient::Central,
-            multiple_scattering: MultipleScattering::None,
+            multiple_scattering: MultipleScattering::Auto,
             lbm: super::LbmSettings::default(),
         }
     }
@@ -226,8 +224,9 @@ mod tests {
 
     #[test]
     fn multiple_scattering_parses_from_the_scene_file() {
-        assert_eq!(Quality::default().multiple_scattering, MultipleScattering::None);
+        assert_eq!(Quality::default().multiple_scattering, MultipleScattering::Auto);
         for m in [
+            MultipleScattering::Auto,
             MultipleScattering::None,
             MultipleScattering::Spread,
             MultipleScattering::Lbm,

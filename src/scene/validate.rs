@@ -34,13 +34,15 @@ impl Scene {
                 q.beams_per_texel
             ));
         }
-        if !q.multiple_scattering.is_available() {
+        q.lbm.check().map_err(SceneError::Invalid)?;
+        if q.multiple_scattering == super::MultipleScattering::Spread
+            && q.light_transport != super::LightTransport::Beams
+        {
             return bad(format!(
-                "quality.multiple_scattering = \"{}\" is not available in the renderer yet; use \"none\"",
-                q.multiple_scattering.name()
+                "quality.multiple_scattering = \"spread\" needs light_transport = \"beams\" (not \"{}\")",
+                q.light_transport.name()
             ));
         }
-        q.lbm.check().map_err(SceneError::Invalid)?;
         if !(0.0..=1.0).contains(&q.termination_opacity) {
             return bad("quality.termination_opacity must be in [0, 1]".into());
         }
@@ -173,12 +175,14 @@ mod tests {
         let mut s = base.clone();
         s.shading.roughness = 1.5;
         assert!(s.validate().is_err());
+        let mut s = base.clone();
+        s.quality.multiple_scattering = super::super::MultipleScattering::Lbm;
+        assert!(s.validate().is_ok(), "lbm");
         let mut s = base;
         s.quality.multiple_scattering = super::super::MultipleScattering::Spread;
+        assert!(s.validate().is_ok(), "spread with the forward beams");
+        s.quality.light_transport = super::super::LightTransport::Backward;
         let err = s.validate().unwrap_err().to_string();
-        assert!(
-            err.contains("multiple_scattering") && err.contains("not available"),
-            "{err}"
-        );
+        assert!(err.contains("spread") && err.contains("beams"), "{err}");
     }
 }
