@@ -93,6 +93,83 @@ fn segment_light(l0: vec3<f32>, l1: vec3<f32>, alpha: f32) -> vec3<f32> {
     return select(falling, rising, l1 >= l0);
 }
 
+// Where along a segment (fraction from its front) its index change is centred, from η at the
+// front, the middle and the end taken as piecewise linear: where η passes halfway between
+// its ends, or, where it turns back (a ray grazing an interface), the middle of the half that
+// changes more.
+fn interface_position(e0: f32, em: f32, e1: f32) -> f32 {
+    let d0 = em - e0;
+    let d1 = e1 - em;
+    if (d0 * d1 < 0.0) {
+        return select(0.75, 0.25, abs(d0) > abs(d1));
+    }
+    let half = 0.5 * (d0 + d1);
+    if (abs(d0) >= abs(half) && abs(d0) > 0.0) {
+        return 0.5 * half / d0;
+    }
+    if (abs(d1) > 0.0) {
+        return 0.5 + 0.5 * (half - d0) / d1;
+    }
+    return 0.5;
+}
+
+// The unit direction that v = η·d (η where it was taken) has in the index `eta` across a
+// layered interface with normal n: the component along the interface is kept (Snell), the
+// normal one takes the rest of |v| = eta, on the same side (none where the part along the
+// interface alone exceeds eta: total internal reflection).
+fn in_medium(v: vec3<f32>, n: vec3<f32>, eta: f32) -> vec3<f32> {
+    let vn = dot(v, n);
+    let t = v - vn * n;
+    return safe_normalize(t + sign_or_one(vn) * sqrt(max(eta * eta - dot(t, t), 0.0)) * n);
+}
+
+// The Cook–Torrance highlight of the index interface(s) that a segment from x0 (index e0)
+// to x1 (index e1) crosses along `dir`, lit by `light` (the light at its front end, on the
+// side the view ray comes from). It does not depend on where the planes fall:
+// - the interface is evaluated where the segment's index change is centred, not at an end: an
+//   end beyond the interface has no normal and sees only part of the index step;
+// - Fresnel comes from the index on both sides of the interface along its normal, counted
+//   once per interface: each segment adds its share of the index change across it (its total
+//   variation, so that a ray grazing an interface counts both crossings, as finer segments
+//   would);
+// - the view ray and the light are taken as they travel in front of the interface (their
+//   components along it are unchanged through it, Snell): a ray already bent halfway through
+//   the ramp would see the narrow lobe elsewhere. The light's direction is the source's,
+//   carried into that medium across an interface parallel to this one. The direction the
+//   beams deposit is not used: next to an interface it mixes beams already kicked by it,
+//   by a whole step at Δs = 1, which moved the lobe (and the energy) with Δs.
+fn segment_highlight(x0: vec3<f32>, x1: vec3<f32>, e0: f32, e1: f32, dir: vec3<f32>, light: vec3<f32>) -> vec3<f32> {
+    let em = index_at(0.5 * (x0 + x1)).eta;
+    let crossed = abs(em - e0) + abs(e1 - em);
+    let xc = mix(x0, x1, interface_position(e0, em, e1));
+    let ix = index_at(xc);
+    let gl = length(ix.grad);
+    if (!has_normal(gl) && guarded(SG_GRADIENT_LENGTH)) {
+        return vec3<f32>(0.0);
+    }
+    let up = ix.grad / gl;
+    let h = P.budget.y;
+    let eta_hi = index_at(xc + h * up).eta;
+    let eta_lo = index_at(xc - h * up).eta;
+    var n1 = eta_lo;
+    var n2 = eta_hi;
+    if (dot(dir, up) < 0.0) {
+        n1 = eta_hi;
+        n2 = eta_lo;
+    }
+    // The index change across the interface is at least the gradient's over the half-width
+    // (has_normal bounds it away from 0).
+    let share = clamp(crossed / max(abs(eta_hi - eta_lo), gl * h), 0.0, 1.0);
+    let view = -in_medium(dir * e0, up, n1);
+    let light_dir = in_medium(P.light_dir.xyz * P.texel.w, up, n1);
+    var n = up;
+    if (dot(n, view) < 0.0) {
+        n = -n;
+    }
+    let f = fresnel_dielectric(dot(n, view), n1, n2);
+    return P.shading.x * share * f * cook_torrance(n, -light_dir, view, P.shading.y) * light * P.light_color.rgb;
+}
+
 // One segment from plane k-1 to plane k.
 fn view_step(px: vec2<u32>, k: u32, tile: u32) {
     let i = pixel_index(px);
@@ -149,31 +226,7 @@ fn view_step(px: vec2<u32>, k: u32, tile: u32) {
     }
     var i_s = vec3<f32>(0.0);
     if (SPECULAR) {
-        let gl = length(ix.grad);
-        if (has_normal(gl) || !guarded(SG_GRADIENT_LENGTH)) {
-            // Fresnel from the index on both sides of the interface along its normal, counted
-            // once per interface: each segment adds its share of the index change across it.
-            let up = ix.grad / gl;
-            let h = P.budget.y;
-            let eta_hi = index_at(x1 + h * up).eta;
-            let eta_lo = index_at(x1 - h * up).eta;
-            var n1 = eta_lo;
-            var n2 = eta_hi;
-            if (dot(dir, up) < 0.0) {
-                n1 = eta_hi;
-                n2 = eta_lo;
-            }
-            // The index change across the interface is at least the gradient's over the
-            // half-width (has_normal bounds it away from 0).
-            let share = clamp(abs(ix.eta - aux.w) / max(abs(eta_hi - eta_lo), gl * h), 0.0, 1.0);
-            let view = -dir;
-            var n = up;
-            if (dot(n, view) < 0.0) {
-                n = -n;
-            }
-            let f = fresnel_dielectric(dot(n, view), n1, n2);
-            i_s = P.shading.x * share * f * cook_torrance(n, -l1.dir, view, P.shading.y) * l1.color * P.light_color.rgb;
-        }
+        i_s = segment_highlight(x0, x1, aux.w, ix.eta, dir, l0);
     }
     // Eq. 14 (Oddy–Willis compositing).
     let transparency = 1.0 - color.a;
