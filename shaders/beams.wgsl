@@ -15,9 +15,10 @@ const ACC_SCALE: f32 = 131072.0;
 // ACC_SCALE (a beam carries one plane-0 cell of power), so 2^31 of headroom cannot wrap.
 const ACC_SATURATED: u32 = 2147483648u;
 
-// Beams deposit their direction of travel too, for highlights and the direction view.
+// Beams deposit their direction of travel too for the direction view only (highlights take
+// the source's direction carried through the surface, view.wgsl `segment_highlight`).
 fn deposits_direction() -> bool {
-    return (SPECULAR && REFRACTION) || DEBUG_VIEW == 2u;
+    return DEBUG_VIEW == 2u;
 }
 
 fn beam_count() -> u32 {

@@ -49,10 +49,10 @@ fn tiles(n: u32) -> u32 {
 }
 
 /// Light channels per deposited pixel: rgb when the medium colours the light (else one grey
-/// value), plus a direction when highlights or the direction view need it.
+/// value), plus a direction when the direction view shows it.
 fn light_channels(features: &Features, debug: DebugView) -> u32 {
     let colour = if features.medium { 3 } else { 1 };
-    let direction = (features.specular && features.refraction) || debug == DebugView::LightDirection;
+    let direction = debug == DebugView::LightDirection;
     colour + if direction { 3 } else { 0 }
 }
 
