@@ -515,6 +515,17 @@ fn beam_cell_power(k: u32, c: vec2<i32>) -> vec3<f32> {
     return load_beam_power((k % 2u) * beam_count() + u32(c.y) * P.beam_grid.x + u32(c.x)).rgb;
 }
 
+// Without refraction: the light the beams carry unscattered at p on plane k, a bilinear
+// lookup of their cells' power (beams keep their cells).
+fn beams_unscattered_at(k: u32, p: vec3<f32>) -> vec3<f32> {
+    let g = grid_coords(p);
+    let lo = floor(g);
+    let f = g - lo;
+    let a = vec2<i32>(lo);
+    return mix(mix(beam_cell_power(k, a), beam_cell_power(k, a + vec2<i32>(1, 0)), f.x),
+               mix(beam_cell_power(k, a + vec2<i32>(0, 1)), beam_cell_power(k, a + vec2<i32>(1, 1)), f.x), f.y);
+}
+
 // Light arriving at the view-space point p on plane k (fluence relative to the source, and
 // the power-weighted direction of travel). Without refraction the beams never leave their
 // cells of the light grid, so the light is a bilinear lookup of their power; with refraction
@@ -522,12 +533,7 @@ fn beam_cell_power(k: u32, c: vec2<i32>) -> vec3<f32> {
 // the traced beams.
 fn beams_light_at(k: u32, p: vec3<f32>) -> LightSample {
     if (!REFRACTION) {
-        let g = grid_coords(p);
-        let lo = floor(g);
-        let f = g - lo;
-        let a = vec2<i32>(lo);
-        var c = mix(mix(beam_cell_power(k, a), beam_cell_power(k, a + vec2<i32>(1, 0)), f.x),
-                    mix(beam_cell_power(k, a + vec2<i32>(0, 1)), beam_cell_power(k, a + vec2<i32>(1, 1)), f.x), f.y);
+        var c = beams_unscattered_at(k, p);
         if (SCATTER) {
             c += beams_scattered_at(k, p);
         }
@@ -745,8 +751,12 @@ fn beams_scattered_at(k: u32, p: vec3<f32>) -> vec3<f32> {
 // phase function at the particle's g for the fraction ω it scatters (single scattering), the
 // rest shaded as without scattering (the colour transfer function's diffuse particles); the
 // scattered part as it is (multiply scattered light is near-isotropic).
-fn spread_seen(k: u32, p: vec3<f32>, toward: vec3<f32>, value: f32, total: vec3<f32>) -> vec3<f32> {
+// Spread mode runs without refraction, so `beams_light_at` is the cells' light plus the
+// scattered light; each is read once here (the deposits are atomics, which a compiler may not
+// merge with the same reads elsewhere).
+fn spread_seen(k: u32, p: vec3<f32>, toward: vec3<f32>, value: f32) -> vec3<f32> {
     let s = beams_scattered_at(k, p);
+    let total = budgeted(beams_unscattered_at(k, p) + s);
     let sc = scatter_coefficients(value);
     let phase = mix(1.0, hg_relative(dot(P.light_dir.xyz, toward), sc.y), clamp(sc.x, 0.0, 1.0));
     return max(total - s, vec3<f32>(0.0)) * phase + s;

@@ -52,9 +52,11 @@ fn view_init(px: vec2<u32>) {
 fn view_first_light(px: vec2<u32>) {
     let i = pixel_index(px);
     let x = view_position(px, i, 0u);
-    var light = light_at(0u, x).color;
+    var light: vec3<f32>;
     if (SCATTER) {
-        light = spread_seen(0u, x, -primary_dir(vec2<f32>(px)), view_aux[i].y, light);
+        light = spread_seen(0u, x, -primary_dir(vec2<f32>(px)), view_aux[i].y);
+    } else {
+        light = light_at(0u, x).color;
     }
     store_view_light(i, vec4<f32>(light, 0.0));
 }
@@ -203,11 +205,12 @@ fn view_step(px: vec2<u32>, k: u32, tile: u32) {
     let clipped = is_clipped(0.5 * (x0 + x1));
     let split = segment_split(value0, sample_value(0.5 * (x0 + x1)), value1);
     let s = split_particles(value0, split, value1, ratio, clipped);
-    let l1 = light_at(k, x1);
-    var light1 = l1.color;
+    var light1: vec3<f32>;
     if (SCATTER) {
         // What the particles scatter toward the viewer (beams.wgsl, spread mode).
-        light1 = spread_seen(k, x1, -dir, value1, light1);
+        light1 = spread_seen(k, x1, -dir, value1);
+    } else {
+        light1 = light_at(k, x1).color;
     }
     let l0 = select(load_view_light(i).rgb, light1, skipped);
     var i_d = s.rgb * segment_light(l0, light1, s.a) * P.light_color.rgb;
