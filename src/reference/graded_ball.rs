@@ -33,7 +33,7 @@ impl GradedBall {
 
 /// Distance along unit `d` from `p` to the sphere of radius `r` about the origin (first
 /// crossing ahead).
-fn to_sphere(p: DVec3, d: DVec3, r: f64) -> f64 {
+pub(crate) fn to_sphere(p: DVec3, d: DVec3, r: f64) -> f64 {
     let b = p.dot(d);
     let c = p.length_squared() - r * r;
     let disc = b * b - c;

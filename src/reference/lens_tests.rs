@@ -3,6 +3,7 @@
 
 use glam::{DVec2, DVec3};
 
+use super::graded_ball::to_sphere;
 use super::measure::{self, Region, ScalarImage};
 use super::medium::{Medium, Optics, VolumeMedium};
 use super::plane_light::{self, PlaneSettings, PlaneView};
@@ -82,22 +83,6 @@ impl BallBehindStop {
     fn in_stop_slab(&self, p: DVec3) -> bool {
         (p.z - self.stop_z).abs() < STOP_HALF_THICKNESS
     }
-}
-
-/// Distance along unit `d` from `p` to the sphere of radius `r` about the origin (first
-/// crossing ahead).
-fn to_sphere(p: DVec3, d: DVec3, r: f64) -> f64 {
-    let b = p.dot(d);
-    let c = p.length_squared() - r * r;
-    let disc = b * b - c;
-    if disc < 0.0 {
-        return f64::INFINITY;
-    }
-    let s = disc.sqrt();
-    [-b - s, -b + s]
-        .into_iter()
-        .filter(|t| *t > 1e-12)
-        .fold(f64::INFINITY, f64::min)
 }
 
 impl Medium for BallBehindStop {
