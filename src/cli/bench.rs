@@ -159,9 +159,7 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
             truth,
             &path,
         )?;
-        print!("{}", read_report(&path).map_err(input)?);
-        eprintln!("wrote {}", path.display());
-        return Ok(());
+        return show_report(None, &path, &[]);
     }
     let ctx = Context::new(&ContextDesc::from_env(DeviceSelector::parse(&args.device)))?;
     if args.steps {
@@ -171,17 +169,7 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
         return light_bench(args, ctx);
     }
     let report = bench::run(ctx.clone(), &plan, &args.out, true)?;
-    print!("{}", read_report(&report.markdown).map_err(input)?);
-    eprintln!(
-        "wrote {}, {} and {}",
-        report.markdown.display(),
-        report.csv.display(),
-        report.plot.display()
-    );
-    if ctx.validation_errors() > 0 {
-        return Err(BenchValidationFailed(ctx.validation_errors()).into());
-    }
-    Ok(())
+    show_report(Some(&ctx), &report.markdown, &[&report.csv, &report.plot])
 }
 
 fn light_convergence(args: &BenchArgs) -> Result<()> {
@@ -204,9 +192,7 @@ fn light_convergence(args: &BenchArgs) -> Result<()> {
         .map_err(input)?;
     let path = args.out.join("light-convergence.md");
     light::convergence(&plan, runs, truth, &path)?;
-    print!("{}", read_report(&path).map_err(input)?);
-    eprintln!("wrote {}", path.display());
-    Ok(())
+    show_report(None, &path, &[])
 }
 
 fn light_bench(args: &BenchArgs, ctx: std::sync::Arc<Context>) -> Result<()> {
@@ -229,12 +215,7 @@ fn light_bench(args: &BenchArgs, ctx: std::sync::Arc<Context>) -> Result<()> {
         plan.size = size;
     }
     let report = light::run(ctx.clone(), &plan, &args.out)?;
-    print!("{}", read_report(&report.markdown).map_err(input)?);
-    eprintln!("wrote {} and {}", report.markdown.display(), report.csv.display());
-    if ctx.validation_errors() > 0 {
-        return Err(BenchValidationFailed(ctx.validation_errors()).into());
-    }
-    Ok(())
+    show_report(Some(&ctx), &report.markdown, &[&report.csv])
 }
 
 /// The name of the CT head in `--scenes` and the speed table.
@@ -309,17 +290,7 @@ fn speed_bench(args: &BenchArgs) -> Result<()> {
         plan.sizes = args.sizes.clone();
     }
     let report = speed::run(ctx.clone(), &plan, &args.out, true)?;
-    print!("{}", read_report(&report.markdown).map_err(input)?);
-    eprintln!(
-        "wrote {}, {} and {}",
-        report.markdown.display(),
-        report.csv.display(),
-        report.fit_csv.display()
-    );
-    if ctx.validation_errors() > 0 {
-        return Err(BenchValidationFailed(ctx.validation_errors()).into());
-    }
-    Ok(())
+    show_report(Some(&ctx), &report.markdown, &[&report.csv, &report.fit_csv])
 }
 
 fn steps_bench(args: &BenchArgs, scenes: &[String], ctx: std::sync::Arc<Context>) -> Result<()> {
@@ -346,13 +317,27 @@ fn steps_bench(args: &BenchArgs, scenes: &[String], ctx: std::sync::Arc<Context>
     }
     plan.highlights = !args.no_highlights;
     steps::run(ctx.clone(), &plan, &args.out, true)?;
-    let path = args.out.join("steps.md");
-    print!("{}", read_report(&path).map_err(input)?);
-    eprintln!("wrote {} and steps.csv", path.display());
-    if ctx.validation_errors() > 0 {
-        return Err(BenchValidationFailed(ctx.validation_errors()).into());
+    show_report(Some(&ctx), &args.out.join("steps.md"), &[&args.out.join("steps.csv")])
+}
+
+/// Prints the Markdown report at `markdown`, names every file written, and fails when the
+/// device reported validation errors during the run.
+fn show_report(ctx: Option<&Context>, markdown: &std::path::Path, also: &[&std::path::Path]) -> Result<()> {
+    print!("{}", read_report(markdown).map_err(input)?);
+    let mut names: Vec<String> = std::iter::once(markdown)
+        .chain(also.iter().copied())
+        .map(|p| p.display().to_string())
+        .collect();
+    let last = names.pop().unwrap_or_default();
+    if names.is_empty() {
+        eprintln!("wrote {last}");
+    } else {
+        eprintln!("wrote {} and {last}", names.join(", "));
     }
-    Ok(())
+    match ctx.map(Context::validation_errors) {
+        Some(n) if n > 0 => Err(BenchValidationFailed(n).into()),
+        _ => Ok(()),
+    }
 }
 
 fn read_report(path: &std::path::Path) -> anyhow::Result<String> {
