@@ -526,15 +526,43 @@ pub fn plane_flux<M: ScatteringMedium + ?Sized + Sync>(
     photons: u64,
     seed: u64,
 ) -> Vec<PlaneFlux> {
+    plane_flux_rings(medium, depths, max_r, 0, 0.0, photons, seed).0
+}
+
+/// [`plane_flux`] for a collimated beam of radius `source_radius` (uniform over a disc on the
+/// axis; 0 is the pencil beam, the same walks as [`plane_flux`] with the same seed) and, per
+/// depth, the net flux through each of `rings` rings of equal width that tile the disc of
+/// radius `max_r` (ring k: k·max_r/rings ≤ r < (k + 1)·max_r/rings), relative to the entering
+/// power: the radial profile of the light on the plane.
+pub fn plane_flux_rings<M: ScatteringMedium + ?Sized + Sync>(
+    medium: &M,
+    depths: &[f64],
+    max_r: f64,
+    rings: usize,
+    source_radius: f64,
+    photons: u64,
+    seed: u64,
+) -> (Vec<PlaneFlux>, Vec<Vec<f64>>) {
     let n = depths.len();
-    // Per depth: Σw, Σwr², Σw², Σ(wr²)², Σw·wr² over the photons (w: one photon's net count).
+    let ring_width = max_r / rings.max(1) as f64;
+    // Per depth: Σw, Σwr², Σw², Σ(wr²)², Σw·wr² over the photons (w: one photon's net count),
+    // then Σw per ring.
     let totals = run(
         photons,
         seed,
-        || vec![[0.0f64; 5]; n],
+        || vec![vec![0.0f64; 5 + rings]; n],
         |_, rng| {
-            let mut sums = vec![[0.0f64; 2]; n];
-            walk(medium, DVec3::ZERO, DVec3::Z, rng, |a, b| {
+            let mut sums = vec![vec![0.0f64; 2 + rings]; n];
+            let start = if source_radius > 0.0 {
+                let (r, phi) = (
+                    source_radius * rng.uniform().sqrt(),
+                    std::f64::consts::TAU * rng.uniform(),
+                );
+                DVec3::new(r * phi.cos(), r * phi.sin(), 0.0)
+            } else {
+                DVec3::ZERO
+            };
+            walk(medium, start, DVec3::Z, rng, |a, b| {
                 for (k, &z) in depths.iter().enumerate() {
                     // Half-open in z so that a photon turning exactly on the plane counts once.
                     let sign = if a.z < z && b.z >= z {
@@ -549,27 +577,37 @@ pub fn plane_flux<M: ScatteringMedium + ?Sized + Sync>(
                     if r2 <= max_r * max_r {
                         sums[k][0] += sign;
                         sums[k][1] += sign * r2;
+                        if rings > 0 {
+                            let ring = ((r2.sqrt() / ring_width) as usize).min(rings - 1);
+                            sums[k][2 + ring] += sign;
+                        }
                     }
                 }
             });
             sums.iter()
-                .map(|&[w, wr2]| [w, wr2, w * w, wr2 * wr2, w * wr2])
+                .map(|s| {
+                    let (w, wr2) = (s[0], s[1]);
+                    let mut t = vec![w, wr2, w * w, wr2 * wr2, w * wr2];
+                    t.extend_from_slice(&s[2..]);
+                    t
+                })
                 .collect::<Vec<_>>()
         },
         |a, b| {
             for (x, y) in a.iter_mut().zip(b) {
-                for k in 0..5 {
-                    x[k] += y[k];
+                for (p, q) in x.iter_mut().zip(y) {
+                    *p += q;
                 }
             }
         },
     );
     let np = photons.max(1) as f64;
-    depths
+    let profiles = totals.iter().map(|t| t[5..].iter().map(|v| v / np).collect()).collect();
+    let flux = depths
         .iter()
         .zip(totals)
         .map(|(&depth, t)| {
-            let [w, wr2, w2, wr2_2, w_wr2] = t.map(|v| v / np);
+            let [w, wr2, w2, wr2_2, w_wr2] = [t[0], t[1], t[2], t[3], t[4]].map(|v| v / np);
             let mean_r2 = if w > 0.0 { wr2 / w } else { 0.0 };
             // Delta method for the ratio of means, as in `beam_widths`.
             let var = (wr2_2 - wr2 * wr2) - 2.0 * mean_r2 * (w_wr2 - w * wr2) + mean_r2 * mean_r2 * (w2 - w * w);
@@ -580,7 +618,8 @@ pub fn plane_flux<M: ScatteringMedium + ?Sized + Sync>(
                 mean_r2_error: if w > 0.0 { (var.max(0.0) / np).sqrt() / w } else { 0.0 },
             }
         })
-        .collect()
+        .collect();
+    (flux, profiles)
 }
 
 /// The part of the straight segment a→b inside z0 ≤ z ≤ z1: its length and ∫(x² + y²) dℓ.
