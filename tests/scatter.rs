@@ -4,126 +4,27 @@
 
 mod common;
 
+use caustica::bench::slab::{self, light_moments, medium_tf, reference_slab, SlabSetup, ENTRY, HOLE, MASK_END, N};
 use caustica::reference::measure::ScalarImage;
-use caustica::reference::plane_light::nearest_sweep_plane;
-use caustica::reference::scatter::{plane_flux, slab_balance, Slab};
+use caustica::reference::scatter::{plane_flux, slab_balance};
 use caustica::render::{DebugView, PreparedScene, RenderRequest};
-use caustica::scene::{MultipleScattering, ViewSetup};
+use caustica::scene::{MultipleScattering, Quality};
 use caustica::transfer::scattering::SpreadMoments;
 use caustica::transfer::{Curve, TransferFunctions};
 use caustica::volume::Volume;
 use common::*;
-use glam::{Vec2, Vec3};
 
-/// Voxels per side of the test volumes; the frame spans them on as many pixels.
-const N: usize = 64;
-/// Voxel depth where the medium starts (the mask in front of it is 2 voxels thick).
-const ENTRY: f32 = 4.0;
-const MASK_END: f32 = 6.0;
-
-/// Transfer functions of a medium at data value 0.5 (extinction `a + b` per voxel, albedo
-/// b / (a + b), anisotropy g) and an opaque, non-scattering mask at 1.
-fn medium_tf(a: f32, b: f32, g: f32) -> TransferFunctions {
-    let alpha = 1.0 - (-(a + b)).exp();
-    let albedo = if a + b > 0.0 { b / (a + b) } else { 0.0 };
-    let mut tf = plain_tf(
-        vec![[0.0, 0.0], [0.5, alpha], [0.75, alpha], [1.0, 1.0]],
-        vec![[0.0, 1.0, 1.0, 1.0]],
-    );
-    tf.albedo = Some(Curve {
-        points: vec![[0.0, 0.0], [0.5, albedo], [0.75, albedo], [1.0, 0.0]],
-    });
-    tf.anisotropy = Some(Curve::constant(g));
-    tf
+/// The narrow-beam slab of `caustica::bench::slab` with `mode`.
+fn setup(volume: Volume, tf: TransferFunctions, mode: MultipleScattering) -> SlabSetup {
+    let quality = Quality {
+        multiple_scattering: mode,
+        ..Quality::default()
+    };
+    SlabSetup::new(volume, tf, quality).expect("the slab scene prepares")
 }
 
-/// Air in front of voxel depth ENTRY, the medium behind it; with `hole`, an opaque mask from
-/// ENTRY to MASK_END with a hole of that radius (voxels) on the axis.
 fn slab_volume(hole: Option<f32>) -> Volume {
-    volume_from(N, |x, y, z| {
-        let n = N as f32;
-        let z = z * n - 0.5;
-        if z < ENTRY {
-            return 0.0;
-        }
-        let r2 = ((x - 0.5) * n).powi(2) + ((y - 0.5) * n).powi(2);
-        match hole {
-            Some(r) if z < MASK_END && r2 > r * r => 1.0,
-            _ => 0.5,
-        }
-    })
-}
-
-struct Setup {
-    p: PreparedScene,
-    view: ViewSetup,
-}
-
-fn setup(volume: Volume, tf: TransferFunctions, mode: MultipleScattering) -> Setup {
-    let mut scene = head_on_scene(&tf);
-    // The frame spans the volume's side: one pixel per voxel.
-    scene.camera.zoom = 3f32.sqrt();
-    scene.quality.multiple_scattering = mode;
-    let view = ViewSetup::new(&scene, volume.dims, volume.spacing, N as u32, N as u32).expect("view");
-    Setup {
-        p: prepared(scene, volume, tf),
-        view,
-    }
-}
-
-impl Setup {
-    /// The view-space point on the axis at voxel depth `z`.
-    fn axis_point(&self, z: f32) -> Vec3 {
-        let world = self
-            .view
-            .tex_from_world
-            .inverse()
-            .transform_point3(Vec3::new(0.5, 0.5, z / N as f32));
-        self.view.view_from_world.transform_point3(world)
-    }
-
-    /// The sweep plane nearest voxel depth `z`: the `--at-depth` value selecting it and the
-    /// voxel depth it is at.
-    fn plane_near(&self, z: f32) -> (f32, f32) {
-        let (_, depth, plane_z) = nearest_sweep_plane(&self.view, self.axis_point(z).z as f64);
-        let p = self
-            .view
-            .point_at(self.view.pixel_of(self.axis_point(z)), plane_z as f32);
-        let tex = self
-            .view
-            .tex_from_world
-            .transform_point3(self.view.world_from_view.transform_point3(p));
-        (depth, tex.z * N as f32)
-    }
-
-    /// Pixel coordinates of the axis, and voxels per pixel.
-    fn axis_pixel(&self) -> (Vec2, f32) {
-        let a = self.view.pixel_of(self.axis_point(ENTRY));
-        let world = self.view.tex_from_world.inverse();
-        let p = |t: Vec3| {
-            self.view
-                .pixel_of(self.view.view_from_world.transform_point3(world.transform_point3(t)))
-        };
-        let step = p(Vec3::new(0.5 + 1.0 / N as f32, 0.5, 0.5)) - p(Vec3::new(0.5, 0.5, 0.5));
-        (a, 1.0 / step.length())
-    }
-}
-
-/// Light (irradiance on the plane, green channel) within `max_r` voxels of the axis: its sum
-/// over the pixels and its mean r² (voxels²).
-fn light_moments(img: &ScalarImage, axis: Vec2, voxels_per_pixel: f32, max_r: f32) -> (f64, f64) {
-    let (mut sum, mut r2sum) = (0.0, 0.0);
-    for y in 0..img.height {
-        for x in 0..img.width {
-            let r = (Vec2::new(x as f32, y as f32) - axis).length() * voxels_per_pixel;
-            if r <= max_r {
-                let l = img.at(x, y);
-                sum += l;
-                r2sum += l * (r as f64).powi(2);
-            }
-        }
-    }
-    (sum, r2sum / sum)
+    slab::slab_volume(hole).expect("the slab volume")
 }
 
 #[test]
@@ -134,25 +35,19 @@ fn a_narrow_beam_spreads_in_a_forward_scattering_slab_like_the_monte_carlo_light
     let max_r = 30.0;
     let mut report = Vec::new();
     for b in [0.05f32, 0.1, 0.2] {
-        let s = setup(slab_volume(Some(2.0)), medium_tf(a, b, g), MultipleScattering::Spread);
+        let s = setup(slab_volume(Some(HOLE)), medium_tf(a, b, g), MultipleScattering::Spread);
         let (axis, vpp) = s.axis_pixel();
-        let depths: Vec<(f32, f32)> = [MASK_END + 1.0, 20.0, 36.0, 52.0]
+        let depths: Vec<_> = [MASK_END + 1.0, 20.0, 36.0, 52.0]
             .iter()
             .map(|z| s.plane_near(*z))
             .collect();
-        let slab = Slab {
-            thickness: N as f64 - ENTRY as f64,
-            half_width: 1000.0,
-            absorption: a as f64,
-            scattering: b as f64,
-            g: g as f64,
-        };
-        let mc_depths: Vec<f64> = depths.iter().map(|d| (d.1 - ENTRY) as f64).collect();
-        let mc = plane_flux(&slab, &mc_depths, max_r as f64, 100_000, 16);
+        let mc_depths: Vec<f64> = depths.iter().map(|d| (d.voxel_z - ENTRY) as f64).collect();
+        let mc = plane_flux(&reference_slab(a, b, g), &mc_depths, max_r as f64, 100_000, 16);
         let gpu_moments: Vec<(f64, f64)> = depths
             .iter()
-            .map(|(d, _)| {
-                let img = ScalarImage::from_image(&gpu.debug(&s.p, N as u32, DebugView::Light, *d).image, 1);
+            .map(|d| {
+                let img =
+                    ScalarImage::from_image(&gpu.debug(&s.prepared, N as u32, DebugView::Light, d.depth).image, 1);
                 light_moments(&img, axis, vpp, max_r)
             })
             .collect();
@@ -226,17 +121,14 @@ fn a_conservative_slab_passes_on_all_the_light_it_receives() {
     let (b, g) = (0.1f32, 0.9f32);
     let s = setup(slab_volume(None), medium_tf(0.0, b, g), MultipleScattering::Spread);
     let (axis, vpp) = s.axis_pixel();
-    let slab = Slab {
-        thickness: N as f64 - ENTRY as f64,
-        half_width: 1000.0,
-        absorption: 0.0,
-        scattering: b as f64,
-        g: g as f64,
-    };
-    let mc = slab_balance(&slab, 50_000, 21);
+    let mc = slab_balance(&reference_slab(0.0, b, g), 50_000, 21);
     for z in [20.0, 36.0] {
-        let (d, at) = s.plane_near(z);
-        let img = ScalarImage::from_image(&gpu.debug(&s.p, N as u32, DebugView::Light, d).image, 1);
+        let plane = s.plane_near(z);
+        let at = plane.voxel_z;
+        let img = ScalarImage::from_image(
+            &gpu.debug(&s.prepared, N as u32, DebugView::Light, plane.depth).image,
+            1,
+        );
         // The centre, away from the frame's edges (light scattered beyond them is dropped).
         let (sum, _) = light_moments(&img, axis, vpp, 6.0);
         let (area, _) = light_moments(&ScalarImage::from_fn(N, N, |_, _| 1.0), axis, vpp, 6.0);
@@ -289,18 +181,18 @@ fn spread_at_zero_albedo_renders_todays_image() {
 fn auto_spreads_when_the_transfer_functions_scatter_and_spread_refuses_refraction() {
     let tf = medium_tf(0.01, 0.1, 0.8);
     let auto = setup(slab_volume(None), tf.clone(), MultipleScattering::Auto);
-    assert!(auto.p.features().scatter, "auto with an albedo: spread");
+    assert!(auto.prepared.features().scatter, "auto with an albedo: spread");
     let mut clear = tf.clone();
     clear.albedo = None;
     assert!(
         !setup(slab_volume(None), clear, MultipleScattering::Auto)
-            .p
+            .prepared
             .features()
             .scatter
     );
     assert!(
         !setup(slab_volume(None), tf.clone(), MultipleScattering::None)
-            .p
+            .prepared
             .features()
             .scatter
     );
@@ -310,10 +202,10 @@ fn auto_spreads_when_the_transfer_functions_scatter_and_spread_refuses_refractio
         points: vec![[0.0, 1.0], [0.5, 1.3]],
     };
     let auto = setup(slab_volume(None), glass.clone(), MultipleScattering::Auto);
-    assert!(auto.p.features().refraction && !auto.p.features().scatter);
+    assert!(auto.prepared.features().refraction && !auto.prepared.features().scatter);
     let spread = setup(slab_volume(None), glass, MultipleScattering::Spread);
     let mut gpu = Gpu::new();
-    let Err(err) = gpu.renderer.render(&spread.p, &RenderRequest::new(16, 16)) else {
+    let Err(err) = gpu.renderer.render(&spread.prepared, &RenderRequest::new(16, 16)) else {
         panic!("spread with refraction rendered");
     };
     let err = err.to_string();

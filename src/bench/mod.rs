@@ -11,6 +11,8 @@ pub mod metrics;
 pub mod plot;
 mod report;
 pub mod scatter;
+pub mod scatter_modes;
+pub mod slab;
 pub mod speed;
 mod speed_report;
 pub mod steps;
