@@ -231,3 +231,63 @@ fn tiny_speed_bench_counts_the_memory_it_reports() {
     assert_eq!(fit_csv.lines().count(), 2, "{fit_csv}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn tiny_scatter_bench_adds_the_lattice_light_to_the_beams() {
+    // The scattering bench end to end at its smallest: one b, one plane behind the baseline,
+    // none and lbm. Beyond the plumbing (one CSV row per mode and plane, the columns scripts
+    // read), the light it measures for lbm holds the lattice's scattered fluence, which the
+    // light view alone lacks: lbm's light reaches further from the axis than none's (the
+    // same unscattered beam), and only lbm's rows name lattice steps.
+    use caustica::bench::scatter::{self, ScatterPlan};
+    use caustica::bench::scatter_modes::{ModeVariant, CSV_HEADER};
+    use caustica::scene::MultipleScattering;
+    let gpu = Gpu::new();
+    let mut plan = ScatterPlan::quick();
+    plan.premoze_photons = 500;
+    plan.modes.scattering = vec![0.2];
+    plan.modes.depths = vec![7.0, 20.0];
+    plan.modes.photons = 2_000;
+    plan.modes.variants = vec![
+        ModeVariant::new(MultipleScattering::None, 1.0, 4),
+        ModeVariant::new(MultipleScattering::Lbm, 1.0, 4),
+    ];
+    let dir = std::env::temp_dir().join(format!("caustica-scatter-bench-test-{}", std::process::id()));
+    let report = scatter::run(gpu.ctx.clone(), &plan, &dir, false).expect("scatter bench runs");
+    gpu.assert_clean();
+    let csv = std::fs::read_to_string(&report.csv).unwrap();
+    let lines: Vec<&str> = csv.lines().collect();
+    assert_eq!(lines.len(), 3, "{csv}");
+    assert_eq!(lines[0], CSV_HEADER);
+    let columns = CSV_HEADER.split(',').count();
+    for line in &lines[1..] {
+        let fields: Vec<&str> = line.split(',').collect();
+        assert_eq!(fields.len(), columns, "{line}");
+        let number = |name: &str| {
+            let i = CSV_HEADER.split(',').position(|c| c == name).unwrap();
+            fields[i].parse::<f64>().unwrap_or(f64::NAN)
+        };
+        assert!(number("gpu_ms") > 0.0, "{line}");
+        assert!(
+            number("mc_width_voxels") > 1.0 && number("profile_rel_l1").is_finite(),
+            "{line}"
+        );
+        let lbm = fields[1] == "lbm";
+        assert_eq!(number("lbm_iterations") > 0.0, lbm, "{line}");
+    }
+    let (none, lbm) = (&report.rows[0], &report.rows[1]);
+    // The hole's beam alone has an rms radius of about √2 voxels (R/√2, R = 2; measured
+    // 1.41); the lattice's glow 16 voxels into the slab spreads over the whole 30-voxel window
+    // (measured 13.9).
+    assert!(
+        none.rms_radius < 3.0 && lbm.rms_radius > 2.0 * none.rms_radius,
+        "{none:?} {lbm:?}"
+    );
+    let md = std::fs::read_to_string(&report.markdown).unwrap();
+    assert!(
+        md.contains("Eq. 18") && md.contains("| lbm, cells of 4 voxels |"),
+        "{md}"
+    );
+    assert!(image::open(&report.plot).is_ok());
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -1,16 +1,21 @@
 //! `caustica bench --scatter`: the Monte Carlo reference's beam spread in Premoze et al.'s
 //! Fig. 4 medium (g = 0.9, a = 0.0003 per mm) against their Eq. 1 and Eq. 18, and the spread
-//! of all the light after a path length against its exact moments. No GPU: the renderer's
-//! multiple-scattering modes will be tabled here against the same numbers.
+//! of all the light after a path length against its exact moments (CPU); then the renderer's
+//! multiple-scattering modes on a narrow-beam slab against the Monte Carlo light, with their
+//! GPU time ([`super::scatter_modes`]).
 
 use std::fmt::Write as _;
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use std::time::Instant;
+
+use crate::gpu::Context;
 
 use crate::reference::scatter::{beam_widths, path_moments, transverse_moment, Centred, Slab};
 use crate::transfer::scattering::{mean_square_angle, premoze_eq1, premoze_eq18};
 
-use super::BenchError;
+use super::scatter_modes::{self, ModeRow, ModesPlan};
+use super::{plot, write_err, BenchError};
 
 /// Premoze et al.'s Fig. 4 medium.
 const G: f64 = 0.9;
@@ -18,8 +23,90 @@ const ABSORPTION_PER_MM: f64 = 0.0003;
 /// Light within this angle of the beam counts as going its way (their Monte Carlo's selection).
 const FORWARD_RAD: f64 = 0.1;
 
-/// Writes `scatter.md` to `out`; `photons` per medium.
-pub fn run(photons: u64, out: &Path) -> Result<String, BenchError> {
+/// What `bench --scatter` runs.
+#[derive(Clone, Debug)]
+pub struct ScatterPlan {
+    /// Photons per medium of the Monte Carlo tables against Premoze et al.
+    pub premoze_photons: u64,
+    pub modes: ModesPlan,
+}
+
+impl ScatterPlan {
+    pub fn full() -> ScatterPlan {
+        ScatterPlan {
+            premoze_photons: 200_000,
+            modes: ModesPlan::full(),
+        }
+    }
+
+    /// Minutes on a CPU driver.
+    pub fn quick() -> ScatterPlan {
+        ScatterPlan {
+            premoze_photons: 20_000,
+            modes: ModesPlan::quick(),
+        }
+    }
+}
+
+/// The results and where they were written.
+pub struct ScatterReport {
+    pub rows: Vec<ModeRow>,
+    pub markdown: PathBuf,
+    pub csv: PathBuf,
+    pub plot: PathBuf,
+}
+
+/// Runs `plan` and writes `scatter.md`, `scatter.csv` (the modes' rows) and `scatter.png`
+/// (their error against GPU time) into `out`.
+pub fn run(ctx: Arc<Context>, plan: &ScatterPlan, out: &Path, progress: bool) -> Result<ScatterReport, BenchError> {
+    std::fs::create_dir_all(out).map_err(|e| write_err(out)(e.to_string()))?;
+    let device = ctx.info.name.clone();
+    let rows = scatter_modes::run(ctx, &plan.modes, progress)?;
+    let mut md = premoze_tables(plan.premoze_photons);
+    md.push_str(&scatter_modes::markdown(&rows, &plan.modes, &device));
+    let markdown = out.join("scatter.md");
+    let csv = out.join("scatter.csv");
+    let plot_path = out.join("scatter.png");
+    std::fs::write(&markdown, &md).map_err(|e| write_err(&markdown)(e.to_string()))?;
+    std::fs::write(&csv, scatter_modes::csv(&rows)).map_err(|e| write_err(&csv)(e.to_string()))?;
+    // One series per mode, a point per quality setting; the profile's error, which every mode
+    // has (the width's baseline plane already holds the lattice's glow in lbm).
+    let summaries = scatter_modes::summarise(&rows, &plan.modes.variants);
+    let mut modes: Vec<&str> = Vec::new();
+    for s in &summaries {
+        if !modes.contains(&s.variant.mode.name()) {
+            modes.push(s.variant.mode.name());
+        }
+    }
+    let series: Vec<plot::Series> = modes
+        .iter()
+        .map(|&name| plot::Series {
+            name,
+            points: summaries
+                .iter()
+                .filter(|s| s.variant.mode.name() == name)
+                .map(|s| (s.gpu_ms, s.profile_l1.max(1e-4)))
+                .collect(),
+        })
+        .collect();
+    plot::write(
+        &plot_path,
+        &series,
+        "gpu ms per render",
+        "radial profile rel. L1 vs monte carlo (mean)",
+    )
+    .map_err(write_err(&plot_path))?;
+    Ok(ScatterReport {
+        rows,
+        markdown,
+        csv,
+        plot: plot_path,
+    })
+}
+
+/// The Monte Carlo reference against Premoze et al.'s Eq. 1 and 18 (Markdown); `photons` per
+/// medium.
+pub fn premoze_tables(photons: u64) -> String {
     let mut md = String::new();
     let theta2 = mean_square_angle(G);
     let _ = writeln!(
@@ -90,10 +177,5 @@ pub fn run(photons: u64, out: &Path) -> Result<String, BenchError> {
             m.mean_r2 / exact
         );
     }
-    let path = out.join("scatter.md");
-    std::fs::write(&path, &md).map_err(|e| BenchError::Write {
-        path: path.clone(),
-        message: e.to_string(),
-    })?;
-    Ok(md)
+    md
 }

@@ -85,9 +85,13 @@ pub struct BenchArgs {
     /// With --steps: scene files measured besides the built-in scenes (GPU only).
     #[arg(long = "scene-file")]
     scene_files: Vec<PathBuf>,
-    /// Instead of the sweep, the beam-spread table: the Monte Carlo reference's spread of a
-    /// pencil beam in Premoze et al.'s Fig. 4 medium against their Eq. 1 and 18, and against
-    /// the exact moments; writes scatter.md; no GPU.
+    /// Instead of the sweep, the beam-spread tables: the Monte Carlo reference's spread of a
+    /// pencil beam in Premoze et al.'s Fig. 4 medium against their Eq. 1 and 18 and against
+    /// the exact moments; then a narrow beam into a slab (g = 0.9, b = 0.05–0.2 per voxel)
+    /// rendered with each multiple-scattering mode (none, spread at Δs 1 and 0.5, lbm with
+    /// cells of 4 and 2 voxels): width and radial profile against the Monte Carlo light, and
+    /// GPU ms per render (--frames: timed renders, default 3, or 1 with --quick); writes
+    /// scatter.md, scatter.csv and scatter.png.
     #[arg(long)]
     scatter: bool,
 }
@@ -121,13 +125,7 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
     }
     plan.highlights = !args.no_highlights;
     if args.scatter {
-        std::fs::create_dir_all(&args.out)
-            .with_context(|| format!("creating {}", args.out.display()))
-            .map_err(input)?;
-        let photons = if args.quick { 20_000 } else { 200_000 };
-        print!("{}", bench::scatter::run(photons, &args.out)?);
-        eprintln!("wrote {}", args.out.join("scatter.md").display());
-        return Ok(());
+        return scatter_bench(args);
     }
     if args.light && args.convergence {
         return light_convergence(args);
@@ -169,6 +167,24 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
         return light_bench(args, ctx);
     }
     let report = bench::run(ctx.clone(), &plan, &args.out, true)?;
+    show_report(Some(&ctx), &report.markdown, &[&report.csv, &report.plot])
+}
+
+fn scatter_bench(args: &BenchArgs) -> Result<()> {
+    use caustica::bench::scatter::{self, ScatterPlan};
+    let mut plan = if args.quick {
+        ScatterPlan::quick()
+    } else {
+        ScatterPlan::full()
+    };
+    if let Some(f) = args.frames {
+        if f == 0 {
+            return Err(input(anyhow!("--frames must be at least 1")));
+        }
+        plan.modes.frames = f;
+    }
+    let ctx = Context::new(&ContextDesc::from_env(DeviceSelector::parse(&args.device)))?;
+    let report = scatter::run(ctx.clone(), &plan, &args.out, true)?;
     show_report(Some(&ctx), &report.markdown, &[&report.csv, &report.plot])
 }
 
