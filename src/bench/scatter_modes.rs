@@ -271,8 +271,7 @@ pub fn run(ctx: Arc<Context>, plan: &ModesPlan, progress: bool) -> Result<Vec<Mo
                 let total: f64 = p.iter().sum();
                 p.iter().map(|x| x / total).collect::<Vec<f64>>()
             };
-            for k in 1..planes.len() {
-                let ((power, r2), profile) = &measured[k];
+            for (k, ((power, r2), profile)) in measured.iter().enumerate().skip(1) {
                 let m = &mc.flux[k];
                 let mc_d = m.mean_r2 - mc.flux[0].mean_r2;
                 let mc_width = mc_d.max(0.0).sqrt();
