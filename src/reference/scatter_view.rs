@@ -41,6 +41,24 @@ pub struct GatherSettings {
     pub max_order: u32,
     /// Colour channel (0 red, 1 green, 2 blue).
     pub channel: usize,
+    /// Shade the fraction 1 − ω of the particles the view sees, which scatters nothing in the
+    /// transport, as the GPU renders non-scattering particles: colour × all the light there
+    /// (the unscattered light and the scattered fluence), isotropically. Off: the physical
+    /// radiance, in which absorbed light is gone.
+    pub diffuse_rest: bool,
+}
+
+impl GatherSettings {
+    /// `samples_per_pixel` samples of all scattering orders, physical shading.
+    pub fn new(samples_per_pixel: u32, seed: u64, channel: usize) -> GatherSettings {
+        GatherSettings {
+            samples_per_pixel,
+            seed,
+            max_order: u32::MAX,
+            channel,
+            diffuse_rest: false,
+        }
+    }
 }
 
 /// A distant light for one channel: where its light travels (unit) and its irradiance.
@@ -103,10 +121,19 @@ pub fn transmittance<M: ScatteringMedium + ?Sized>(medium: &M, p: DVec3, d: DVec
     }
 }
 
+/// A uniformly distributed unit direction.
+fn uniform_direction(rng: &mut Rng) -> DVec3 {
+    let z = 1.0 - 2.0 * rng.uniform();
+    let r = (1.0 - z * z).max(0.0).sqrt();
+    let phi = std::f64::consts::TAU * rng.uniform();
+    DVec3::new(r * phi.cos(), r * phi.sin(), z)
+}
+
 /// One sample of the radiance arriving at `o` against the unit direction `d` (the view ray
 /// from `o` along `d`): light scattered towards `o` by the medium, plus `background` if the ray
 /// crosses the medium without a collision. `colour` weighs the first collision (the particle
-/// the view sees).
+/// the view sees); `settings` gives the orders counted and the shading of the particles'
+/// non-scattering fraction (its samples and seed are not used here).
 #[allow(clippy::too_many_arguments)]
 pub fn sample_radiance<M: ScatteringMedium + ?Sized>(
     medium: &M,
@@ -114,10 +141,11 @@ pub fn sample_radiance<M: ScatteringMedium + ?Sized>(
     o: DVec3,
     d: DVec3,
     background: f64,
-    max_order: u32,
-    colour: impl Fn(DVec3) -> f64,
+    settings: &GatherSettings,
+    colour: &dyn Fn(DVec3) -> f64,
     rng: &mut Rng,
 ) -> f64 {
+    let max_order = settings.max_order;
     let (lo, hi) = medium.bounds();
     let Some((t0, _)) = box_interval(o, d, lo, hi) else {
         return background;
@@ -128,6 +156,22 @@ pub fn sample_radiance<M: ScatteringMedium + ?Sized>(
         order += 1;
         if order == 1 {
             weight *= colour(x);
+            if settings.diffuse_rest && c.albedo < 1.0 {
+                // The unscattered light, isotropically, and the scattered fluence: the mean
+                // over directions of the (scattered) radiance arriving at x, one direction per
+                // sample (no diffuse shading further down that path).
+                let mut seen = light.irradiance * transmittance(medium, x, -light.direction, rng);
+                if max_order > 1 {
+                    let inner = GatherSettings {
+                        diffuse_rest: false,
+                        max_order: max_order - 1,
+                        ..*settings
+                    };
+                    let back = uniform_direction(rng);
+                    seen += sample_radiance(medium, light, x, back, 0.0, &inner, &|_| 1.0, rng);
+                }
+                sum += weight * (1.0 - c.albedo) * seen;
+            }
         }
         weight *= c.albedo;
         if weight <= 0.0 {
@@ -210,7 +254,7 @@ pub fn gather(
             for s in 0..spp {
                 let mut rng = Rng::for_photon(settings.seed, i * spp + s);
                 let colour = |x: DVec3| volume_medium.optics(x).color[c];
-                let v = sample_radiance(&medium, &light, o, d, background, settings.max_order, colour, &mut rng);
+                let v = sample_radiance(&medium, &light, o, d, background, settings, &colour, &mut rng);
                 s1 += v;
                 s2 += v * v;
             }

@@ -5,7 +5,7 @@
 use glam::DVec3;
 
 use super::scatter::{slab_balance, Coefficients, Rng, ScatteringMedium, Slab};
-use super::scatter_view::{sample_radiance, transmittance, GatherLight};
+use super::scatter_view::{sample_radiance, transmittance, GatherLight, GatherSettings};
 use crate::transfer::scattering::hg_relative;
 
 /// Mean and standard error of `n` samples of `f` (sample i from its own generator).
@@ -27,8 +27,14 @@ fn single_scattering_in_a_slab_is_the_closed_form() {
     // depth s sees the light after s/μ (μ = cos θ) of medium and is seen through s, so the
     // single-scattered radiance (relative to isotropic scattering of unit irradiance) is
     // ω·4πp(cos Θ)·σ ∫₀ᴰ e^{−σs(1 + 1/μ)} ds = ω·4πp·(1 − e^{−τ(1 + 1/μ)})/(1 + 1/μ),
-    // with τ = σD and cos Θ = l·(−z) = −μ.
-    for (g, theta_deg, absorption, scattering) in [(0.6, 60.0f64, 0.1, 0.9), (-0.3, 30.0, 0.5, 1.5)] {
+    // with τ = σD and cos Θ = l·(−z) = −μ. Shading the non-scattering fraction as the GPU
+    // does adds (1 − ω) of the (unscattered) light, isotropically: ω·4πp becomes
+    // ω·4πp + 1 − ω.
+    for (g, theta_deg, absorption, scattering, diffuse_rest) in [
+        (0.6, 60.0f64, 0.1, 0.9, false),
+        (-0.3, 30.0, 0.5, 1.5, false),
+        (0.6, 60.0, 0.4, 0.6, true),
+    ] {
         let slab = Slab {
             thickness: 1.0,
             half_width: 1000.0,
@@ -42,8 +48,15 @@ fn single_scattering_in_a_slab_is_the_closed_form() {
             irradiance: 2.0,
         };
         let sigma = absorption + scattering;
+        let omega = scattering / sigma;
         let k = 1.0 + 1.0 / mu;
-        let exact = light.irradiance * scattering / sigma * hg_relative(-mu, g) * (1.0 - (-sigma * k).exp()) / k;
+        let seen = omega * hg_relative(-mu, g) + if diffuse_rest { 1.0 - omega } else { 0.0 };
+        let exact = light.irradiance * seen * (1.0 - (-sigma * k).exp()) / k;
+        let settings = GatherSettings {
+            max_order: 1,
+            diffuse_rest,
+            ..GatherSettings::new(1, 0, 1)
+        };
         let (mean, se) = estimate(40_000, 5, |rng| {
             sample_radiance(
                 &slab,
@@ -51,13 +64,13 @@ fn single_scattering_in_a_slab_is_the_closed_form() {
                 DVec3::new(0.0, 0.0, -1.0),
                 DVec3::Z,
                 0.0,
-                1,
-                |_| 1.0,
+                &settings,
+                &|_| 1.0,
                 rng,
             )
         });
-        eprintln!("g {g}: single scattering {mean:.5} ± {se:.5}, exact {exact:.5}");
-        // 4 standard errors (the estimate's own, 0.6–0.8 % of it at 4·10⁴ samples).
+        eprintln!("g {g}, diffuse rest {diffuse_rest}: single scattering {mean:.5} ± {se:.5}, exact {exact:.5}");
+        // 4 standard errors (the estimate's own, 0.5–0.8 % of it at 4·10⁴ samples).
         assert!((mean - exact).abs() < 4.0 * se, "g {g}: {mean} ± {se} vs {exact}");
         assert!(se < 0.02 * exact, "{se}");
     }
@@ -124,13 +137,14 @@ fn a_conservative_slab_reflects_what_the_photon_walks_reflect() {
         irradiance: 1.0,
     };
     let n = 40_000;
+    let all = GatherSettings::new(1, 0, 1);
     let (mean, se) = estimate(n, 17, |rng| {
         let (u1, u2) = (rng.uniform(), rng.uniform());
         let cos = u1.sqrt();
         let sin = (1.0 - u1).sqrt();
         let phi = std::f64::consts::TAU * u2;
         let d = DVec3::new(sin * phi.cos(), sin * phi.sin(), cos);
-        sample_radiance(&slab, &light, -d, d, 0.0, u32::MAX, |_| 1.0, rng) / 4.0
+        sample_radiance(&slab, &light, -d, d, 0.0, &all, &|_| 1.0, rng) / 4.0
     });
     let walks = slab_balance(&slab, n, 18);
     let walk_se = (walks.reflected * (1.0 - walks.reflected) / n as f64).sqrt();
