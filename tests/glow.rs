@@ -266,11 +266,15 @@ fn a_faint_sphere_scatters_the_light_once_like_the_monte_carlo_light() {
     ];
     let views: Vec<(&str, &[f64])> = images.iter().map(|(n, i)| (*n, i.as_slice())).collect();
     let l1 = compare("faint sphere", &frame, &mc, &views);
-    // Measured: spread 0.099 along the light, 0.117 radial: it sees its scattered light as
-    // isotropic, while light scattered once in a faint medium still travels near the light's
-    // direction (HG with g² about it) and scatters little back towards the viewer. lbm 0.030
-    // and 0.023. Monte Carlo noise adds about 0.02. Bounds: measured + 0.03.
-    assert!(l1[0].0 < 0.13 && l1[0].1 < 0.15, "spread {:?}", l1[0]);
+    // Measured: spread 0.189 along the light, 0.224 radial, 10–25 % too bright inside the
+    // disc: it sees its scattered light as isotropic, while light scattered once in a faint
+    // medium still travels near the light's direction (HG(g) about it) and the particles send
+    // it towards the viewer through HG(g²) at 110°, about half of isotropic; and it deposits
+    // that light as one Gaussian about its centroid, where the light scattered once is a
+    // forward cone (0.099 and 0.117 before the deposit followed the centroid's lag, which
+    // left more of it beyond the sphere). lbm 0.030 and 0.023. Monte Carlo noise adds about
+    // 0.02. Bounds: measured + 0.03.
+    assert!(l1[0].0 < 0.22 && l1[0].1 < 0.26, "spread {:?}", l1[0]);
     assert!(l1[1].0 < 0.06 && l1[1].1 < 0.06, "lbm {:?}", l1[1]);
     // `none` shades its particles isotropically, with no phase function: the comparison
     // tells it apart (measured 1.89: 3.4 times too bright at this angle).
@@ -316,11 +320,13 @@ fn a_translucent_sphere_lit_from_the_side_glows_into_its_shadow_like_the_monte_c
 
     // The target is relative L1 < 0.10 on the profile along the light; neither mode meets it.
     // Measured (256 samples per pixel; Monte Carlo noise adds about 0.01):
-    // - spread 0.315 along the light, 0.179 radial. Its scattered light goes on forward with
-    //   the beams and none comes back: the lit side is 30–35 % too dark (the Monte Carlo's
-    //   light there is mostly scattered back out of the sphere's depth) and the far side up
-    //   to twice too bright (it receives what the medium would have sent back or sideways:
-    //   the Monte Carlo slab's reflection, 19–29 %, is what the spread mode cannot carry).
+    // - spread 0.147 along the light, 0.143 radial: the profile's shape is right (its peak
+    //   where the Monte Carlo's is), 5–10 % too bright in the middle and 1.5–2.6 times at the
+    //   far rim. Its scattered light goes on with the beams and none leaves backwards: what
+    //   the medium sends back out of its lit face (the Monte Carlo slab reflects 19–29 %)
+    //   stays in. (0.315 and 0.179 when the deposit put the scattered light on the beam
+    //   instead of at its centroid, lagging behind: the lit side was 30–35 % too dark and
+    //   the far side up to twice too bright.)
     // - lbm 0.267 along, 0.289 radial: the image is about 0.7 of the Monte Carlo's from the
     //   lit side to the far side (a shape close to right, too little light): the lattice
     //   follows diffusion theory with the similarity σ_s(1 − g), which a sphere one transport
@@ -329,7 +335,7 @@ fn a_translucent_sphere_lit_from_the_side_glows_into_its_shadow_like_the_monte_c
     // close the gap: light scattered backwards in the spread mode (a second, backward sweep or
     // a diffusion term for its diffuse part); transport beyond diffusion in the lattice (more
     // directions than six, or the light scattered a few times traced before it diffuses).
-    assert!(l1[0].0 < 0.36 && l1[0].1 < 0.22, "spread {:?}", l1[0]);
+    assert!(l1[0].0 < 0.19 && l1[0].1 < 0.19, "spread {:?}", l1[0]);
     assert!(l1[1].0 < 0.31 && l1[1].1 < 0.33, "lbm {:?}", l1[1]);
     // Both modes are closer to the Monte Carlo glow than the image without multiple
     // scattering (measured 0.457 and 0.520).
