@@ -205,6 +205,29 @@ fn compare(name: &str, frame: &Frame, mc: &GatherImage, gpu: &[(&str, &[f64])]) 
     out
 }
 
+/// The Monte Carlo image and the GPU's side by side (grey, each pixel 3 × 3, one scale: the
+/// Monte Carlo's brightest pixel is white; gamma 2.2), for docs/accuracy.md.
+fn save_picture(path: &str, mc: &[f64], gpu: &[(&str, &[f64])]) {
+    const ZOOM: u32 = 3;
+    const GAP: u32 = 8;
+    let side = SIZE * ZOOM;
+    let panels: Vec<&[f64]> = std::iter::once(mc).chain(gpu.iter().map(|g| g.1)).collect();
+    let width = panels.len() as u32 * (side + GAP) - GAP;
+    let max = mc.iter().cloned().fold(0.0, f64::max);
+    let mut img = image::GrayImage::new(width, side);
+    for (k, panel) in panels.iter().enumerate() {
+        for y in 0..side {
+            for x in 0..side {
+                let v = panel[((y / ZOOM) * SIZE + x / ZOOM) as usize] / max;
+                let grey = (v.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0).round() as u8;
+                img.put_pixel(k as u32 * (side + GAP) + x, y, image::Luma([grey]));
+            }
+        }
+    }
+    img.save(path).expect("the picture is written");
+    eprintln!("wrote {path}");
+}
+
 #[test]
 fn the_monte_carlo_gather_is_deterministic_and_refuses_refraction() {
     let s = Sphere {
@@ -303,6 +326,10 @@ fn a_translucent_sphere_lit_from_the_side_glows_into_its_shadow_like_the_monte_c
     ];
     let views: Vec<(&str, &[f64])> = images.iter().map(|(n, i)| (*n, i.as_slice())).collect();
     let l1 = compare("translucent sphere", &frame, &mc, &views);
+    if let Ok(path) = std::env::var("CAUSTICA_GLOW_PICTURE") {
+        // Less noise for the eye than the profiles need: 4096 samples per pixel.
+        save_picture(&path, &monte_carlo(&spread, 4096, 5, u32::MAX, true).mean, &views);
+    }
 
     // The reference's glow is multiple scattering: on the far (shadowed) third of the disc
     // the light of all orders is many times that of single scattering (measured 14).
