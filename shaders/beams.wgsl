@@ -602,13 +602,6 @@ fn scatter_coefficients(v: f32) -> vec2<f32> {
     return mix(scatter_table[i].xy, scatter_table[i + 1u].xy, f);
 }
 
-// Henyey–Greenstein phase function relative to isotropic scattering (`hg_relative`); exactly 1
-// for g = 0.
-fn hg_relative(cos_theta: f32, g: f32) -> f32 {
-    let d = 1.0 + g * g - 2.0 * g * cos_theta;
-    return (1.0 - g * g) / (d * sqrt(d));
-}
-
 // (1 − e^−x) / x, 1 at 0: the mean of e^−u over u in [0, x] (x may be negative).
 fn spread_mean_exp(x: f32) -> f32 {
     if (abs(x) < 1e-3) {

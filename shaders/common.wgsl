@@ -312,6 +312,14 @@ fn unproject(t: vec2<f32>, z: f32) -> vec3<f32> {
     return vec3<f32>(ndc * z, z);
 }
 
+// Henyey–Greenstein phase function relative to isotropic scattering, as
+// `transfer::scattering::hg_relative` (the spread and lattice modes' views); exactly 1 for
+// g = 0.
+fn hg_relative(cos_theta: f32, g: f32) -> f32 {
+    let d = 1.0 + g * g - 2.0 * g * cos_theta;
+    return (1.0 - g * g) / (d * sqrt(d));
+}
+
 // Continuous pixel coordinates of a view-space point (inverse of `unproject`).
 // The perspective division needs no guard: every point projected lies on a plane of the
 // sweep (p.z = a plane's z, to rounding; MIN_LIGHT_DIR_Z and MIN_VIEW_DIR_Z keep the steps
