@@ -602,13 +602,6 @@ fn scatter_coefficients(v: f32) -> vec2<f32> {
     return mix(scatter_table[i].xy, scatter_table[i + 1u].xy, f);
 }
 
-// Henyey–Greenstein phase function relative to isotropic scattering (`hg_relative`); exactly 1
-// for g = 0.
-fn hg_relative(cos_theta: f32, g: f32) -> f32 {
-    let d = 1.0 + g * g - 2.0 * g * cos_theta;
-    return (1.0 - g * g) / (d * sqrt(d));
-}
-
 // (1 − e^−x) / x, 1 at 0: the mean of e^−u over u in [0, x] (x may be negative).
 fn spread_mean_exp(x: f32) -> f32 {
     if (abs(x) < 1e-3) {
@@ -720,8 +713,14 @@ fn spread_step(index: u32, k: u32, b: Beam, u_before: vec3<f32>, x0: vec3<f32>, 
     // Scattered light goes on losing only what is absorbed: (1 − ω) of the extinction, and
     // the medium; the unscattered light gives it ω of what the particles took.
     scattered = scattered * exp(-(1.0 - albedo) * tau) * t_medium + u_before * alpha * albedo * t_medium;
-    let m = spread_moments(beam_scatter[read + 1u], albedo * tau, sc.y, l);
-    beam_scatter[write] = vec4<f32>(scattered, m.w);
+    let m_before = beam_scatter[read + 1u];
+    let m = spread_moments(m_before, albedo * tau, sc.y, l);
+    // The lag of all the light behind the beam, s − E[z]: it grows by ∫(1 − P₁) over the
+    // segment, P₁ = e^{−(1−g)∫b} at the local g (exact where g is constant).
+    let y1 = (1.0 - sc.y) * albedo * tau;
+    let p1 = exp(-(1.0 - sc.y) * m_before.w);
+    let lag = a.w + l * (1.0 - p1 * spread_mean_exp(y1));
+    beam_scatter[write] = vec4<f32>(scattered, lag);
     beam_scatter[write + 1u] = m;
     if (max(scattered.r, max(scattered.g, scattered.b)) <= 0.0) {
         return;
@@ -732,7 +731,11 @@ fn spread_step(index: u32, k: u32, b: Beam, u_before: vec3<f32>, x0: vec3<f32>, 
     let spread = 0.5 * m.z / max(frac, 1e-12);
     // In pixels² on this plane (a pixel's side there: sqrt(pixel_area)), plus the cell's own
     // box footprint.
-    let c = project(b.pos) + vec2<f32>(0.5);
+    // The scattered light's centroid lags behind the beam by lag / (1 − e^−∫b) (the
+    // unscattered part is on the beam): deposited there, seen along the view axis.
+    let behind = lag / max(frac, 1e-12);
+    let centre = b.pos - P.light_dir.xyz * behind;
+    let c = project(vec3<f32>(centre.xy, b.pos.z)) + vec2<f32>(0.5);
     let pu = project(b.pos + du) - project(b.pos);
     let pv = project(b.pos + dv) - project(b.pos);
     let cell = (dot(pu, pu) + dot(pv, pv)) / 24.0;

@@ -156,8 +156,9 @@ struct Immediates {
 @group(0) @binding(25) var<storage, read_write> tile_args: array<atomic<u32>>;
 // Spread mode (SCATTER): per data value (the pre-integration tables' lattice) the albedo ω
 // and the anisotropy g; per beam and half of the ping-pong pair two vec4: the scattered
-// power (rgb) and the scattering optical depth along its path, then the spread moments
-// (1 − P₂, C, R; `transfer::scattering::SpreadMoments`).
+// power (rgb) and the lag of all its light behind the beam (s − E[z], view units), then the
+// spread moments (1 − P₂, C, R; `transfer::scattering::SpreadMoments`) and the scattering
+// optical depth along its path.
 @group(0) @binding(26) var<storage, read> scatter_table: array<vec4<f32>>;
 @group(0) @binding(27) var<storage, read_write> beam_scatter: array<vec4<f32>>;
 
@@ -309,6 +310,14 @@ fn unproject(t: vec2<f32>, z: f32) -> vec3<f32> {
         return vec3<f32>(ndc, z);
     }
     return vec3<f32>(ndc * z, z);
+}
+
+// Henyey–Greenstein phase function relative to isotropic scattering, as
+// `transfer::scattering::hg_relative` (the spread and lattice modes' views); exactly 1 for
+// g = 0.
+fn hg_relative(cos_theta: f32, g: f32) -> f32 {
+    let d = 1.0 + g * g - 2.0 * g * cos_theta;
+    return (1.0 - g * g) / (d * sqrt(d));
 }
 
 // Continuous pixel coordinates of a view-space point (inverse of `unproject`).

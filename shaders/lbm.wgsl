@@ -29,6 +29,9 @@ struct LbmParams {
 @group(0) @binding(6) var<storage, read_write> f_out: array<f32>;
 // Per cell after a step: fluence, its change over the step, what left the grid, what was absorbed.
 @group(0) @binding(7) var<storage, read_write> measure: array<vec4<f32>>;
+// Per cell: the mean cosine g of the light its particles scatter (weighted by what they
+// scatter), which directs its source.
+@group(0) @binding(8) var<storage, read_write> source_g: array<f32>;
 
 const WG: u32 = 64u;
 // Cells per unit time the lattice's light moves (see `deposit_main`).
@@ -88,6 +91,7 @@ fn deposit_main(@builtin(global_invocation_id) id: vec3<u32>) {
     let edge = L.volume.w;
     let h = L.to_light.w;
     var scattered = 0.0;  // Σ ω T (1 − e^{−σ_t h}) / h: scattered power per volume
+    var scattered_g = 0.0; // Σ of the same times g
     var sigma_s = 0.0;    // Σ reduced scattering σ_s (1 − g)
     var sigma_a = 0.0;
     var inside = 0.0;
@@ -100,7 +104,9 @@ fn deposit_main(@builtin(global_invocation_id) id: vec3<u32>) {
         inside += 1.0;
         let m = coefficients(value_at(p));
         let front = depth_to_light(p + L.to_light.xyz * (0.5 * h));
-        scattered += m.y * exp(-front) * (1.0 - exp(-m.x * h)) / h;
+        let q = m.y * exp(-front) * (1.0 - exp(-m.x * h)) / h;
+        scattered += q;
+        scattered_g += q * m.z;
         sigma_s += m.x * m.y * (1.0 - m.z);
         sigma_a += m.x * (1.0 - m.y);
     }
@@ -126,6 +132,7 @@ fn deposit_main(@builtin(global_invocation_id) id: vec3<u32>) {
     let s = clamp(2.0 * u / (2.0 + u) - a, 0.0, 1.2 * (1.0 - a));
     // Source per step: the power scattered per volume over one step's time (fluence units).
     cells[i] = vec4<f32>(scattered * w * step_time, s, a, scattered * w * edge * edge * edge);
+    source_g[i] = select(0.0, scattered_g / scattered, scattered > 0.0);
 }
 
 const DIRS: array<vec3<i32>, 6> = array<vec3<i32>, 6>(
@@ -142,8 +149,24 @@ fn index_of(c: vec3<i32>) -> u32 {
     return (u32(c.z) * L.grid.y + u32(c.y)) * L.grid.x + u32(c.x);
 }
 
+// The share of a cell's source that goes into lattice direction `dir`: the deposited light is
+// scattered once, by Henyey–Greenstein particles of mean cosine g, so its current is g times
+// its fluence along the light's direction of travel l. Shares (1 + (3g/c) e_i·l)/6 hold that
+// current (Σ_i share_i c e_i = g l); negative shares (g above c/3 about an axis) are clamped
+// to 0 and the rest renormalised, which keeps the source and most of its current. g = 0: a
+// sixth in every direction.
+fn source_share(i: u32, dir: u32) -> f32 {
+    let l = -L.to_light.xyz;
+    let a = 3.0 * source_g[i] / LATTICE_SPEED;
+    var total = 0.0;
+    for (var j = 0u; j < 6u; j++) {
+        total += max(1.0 + a * dot(vec3<f32>(DIRS[j]), l), 0.0);
+    }
+    return max(1.0 + a * dot(vec3<f32>(DIRS[dir]), l), 0.0) / total;
+}
+
 // The collision at a cell: Eq. 4–5 corrected, f'_i = (s/6) Σ_j f_j + (1 − s − a) f_i, plus
-// a sixth of the source in every direction (isotropic scattering of the deposited light).
+// the source's share in direction i (`source_share`).
 fn collide(i: u32, dir: u32) -> f32 {
     let n = cell_count();
     var total = 0.0;
@@ -151,7 +174,7 @@ fn collide(i: u32, dir: u32) -> f32 {
         total += f_in[j * n + i];
     }
     let c = cells[i];
-    return c.y / 6.0 * total + (1.0 - c.y - c.z) * f_in[dir * n + i] + c.x / 6.0;
+    return c.y / 6.0 * total + (1.0 - c.y - c.z) * f_in[dir * n + i] + c.x * source_share(i, dir);
 }
 
 // One step: collide, then stream each direction to the neighbour (Eq. 4); what streams out of
@@ -195,7 +218,7 @@ fn measure_main(@builtin(global_invocation_id) id: vec3<u32>) {
     for (var d = 0u; d < 6u; d++) {
         if (!inside_grid(c + DIRS[d])) {
             // The collision of the step before (`collide` on f_out).
-            leaving += coef.y / 6.0 * before + (1.0 - coef.y - coef.z) * f_out[d * n + i] + coef.x / 6.0;
+            leaving += coef.y / 6.0 * before + (1.0 - coef.y - coef.z) * f_out[d * n + i] + coef.x * source_share(i, d);
         }
     }
     measure[i] = vec4<f32>(now, abs(now - before), leaving, coef.z * before);

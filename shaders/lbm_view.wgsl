@@ -21,6 +21,23 @@ fn lbm_cell(c: vec3<i32>) -> f32 {
     return lbm_grid.fluence[u32((k.z * d.y + k.y) * d.x + k.x)];
 }
 
+// ω and g at a data value (the table's entries interpolated linearly, as the lattice's).
+fn lbm_coefficients(value: f32) -> vec2<f32> {
+    let n = arrayLength(&lbm_albedo);
+    let x = clamp(value, 0.0, 1.0) * f32(n - 1u);
+    let i = min(u32(x), n - 2u);
+    return mix(lbm_albedo[i].yz, lbm_albedo[i + 1u].yz, x - f32(i));
+}
+
+// The unscattered light `light` as a particle of data value `value` sends it into the direction
+// `toward` (unit), relative to isotropic scattering: the fraction ω it scatters through the
+// Henyey–Greenstein phase function (single scattering), the rest shaded as without scattering
+// (the spread mode's `spread_seen` does the same with its unscattered part).
+fn lbm_seen(light: vec3<f32>, toward: vec3<f32>, value: f32) -> vec3<f32> {
+    let c = lbm_coefficients(value);
+    return light * mix(1.0, hg_relative(dot(P.light_dir.xyz, toward), c.y), clamp(c.x, 0.0, 1.0));
+}
+
 // ω(value) times the scattered fluence at the view-space point p (trilinear between cell
 // centres, clamped at the grid's faces), relative to the light's irradiance.
 fn lbm_in_scattering(p: vec3<f32>, value: f32) -> f32 {
@@ -32,9 +49,5 @@ fn lbm_in_scattering(p: vec3<f32>, value: f32) -> f32 {
     let x01 = mix(lbm_cell(c + vec3<i32>(0, 0, 1)), lbm_cell(c + vec3<i32>(1, 0, 1)), t.x);
     let x11 = mix(lbm_cell(c + vec3<i32>(0, 1, 1)), lbm_cell(c + vec3<i32>(1, 1, 1)), t.x);
     let phi = mix(mix(x00, x10, t.y), mix(x01, x11, t.y), t.z);
-    let n = arrayLength(&lbm_albedo);
-    let x = clamp(value, 0.0, 1.0) * f32(n - 1u);
-    let i = min(u32(x), n - 2u);
-    let albedo = mix(lbm_albedo[i].y, lbm_albedo[i + 1u].y, x - f32(i));
-    return albedo * phi;
+    return lbm_coefficients(value).x * phi;
 }

@@ -55,6 +55,8 @@ fn view_first_light(px: vec2<u32>) {
     var light: vec3<f32>;
     if (SCATTER) {
         light = spread_seen(0u, x, -primary_dir(vec2<f32>(px)), view_aux[i].y);
+    } else if (LBM) {
+        light = lbm_seen(light_at(0u, x).color, -primary_dir(vec2<f32>(px)), view_aux[i].y);
     } else {
         light = light_at(0u, x).color;
     }
@@ -209,6 +211,9 @@ fn view_step(px: vec2<u32>, k: u32, tile: u32) {
     if (SCATTER) {
         // What the particles scatter toward the viewer (beams.wgsl, spread mode).
         light1 = spread_seen(k, x1, -dir, value1);
+    } else if (LBM) {
+        // Single scattering through the phase function; the lattice's light below.
+        light1 = lbm_seen(light_at(k, x1).color, -dir, value1);
     } else {
         light1 = light_at(k, x1).color;
     }

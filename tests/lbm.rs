@@ -94,32 +94,37 @@ fn lbm_with_zero_albedo_renders_the_image_without_it() {
 fn without_absorption_the_lattice_returns_what_was_deposited() {
     let mut gpu = Gpu::new();
     let sigma_t = 0.2f64;
-    let (volume, tf) = medium(sigma_t as f32, 1.0);
-    let s = solve(&mut gpu, &lbm_scene(volume, tf, 2));
-    assert!(s.converged, "residual {:.2e} after {} steps", s.residual, s.iterations);
-    // Head-on light crosses the 32-voxel cube along one axis: the particles scatter
-    // 1 − e^{−σ_t·32} of the 32² voxel² that enter. The deposit's sub-samples tile the cube
-    // along the light with exact exponentials per voxel, so what is left is f32 rounding over
-    // 32 · 32³ terms: bound 1e-4 relative.
-    let expected = (N * N) as f64 * (1.0 - (-sigma_t * N as f64).exp());
-    assert!(
-        (s.deposited / expected - 1.0).abs() < 1e-4,
-        "deposited {} of {expected}",
-        s.deposited
-    );
-    // Albedo 1: nothing is absorbed, so what the last step streamed out of the grid equals
-    // what the particles scatter into it, less what the grid gained over that step:
-    // |source − leaving| = |Σφₙ − Σφₙ₋₁| ≤ Σ|φₙ − φₙ₋₁| = residual · Σφₙ. The slack of
-    // 1e-5 · source covers the f32 arithmetic of 16³ cells.
-    assert_eq!(s.absorbed, 0.0);
-    let held: f64 = s.fluence.iter().map(|&f| f as f64).sum();
-    let imbalance = (s.source - s.leaving).abs();
-    eprintln!(
-        "imbalance {imbalance:.3e} = {:.2e} of the source; bound {:.3e}",
-        imbalance / s.source,
-        s.residual * held + 1e-5 * s.source
-    );
-    assert!(imbalance <= s.residual * held + 1e-5 * s.source);
+    // g = 0: a sixth of the source in every direction; g = 0.8: the source's shares directed
+    // along the light (with the negative one clamped), which must not change the balance.
+    for g in [0.0f32, 0.8] {
+        let (volume, mut tf) = medium(sigma_t as f32, 1.0);
+        tf.anisotropy = Some(Curve::constant(g));
+        let s = solve(&mut gpu, &lbm_scene(volume, tf, 2));
+        assert!(s.converged, "residual {:.2e} after {} steps", s.residual, s.iterations);
+        // Head-on light crosses the 32-voxel cube along one axis: the particles scatter
+        // 1 − e^{−σ_t·32} of the 32² voxel² that enter. The deposit's sub-samples tile the
+        // cube along the light with exact exponentials per voxel, so what is left is f32
+        // rounding over 32 · 32³ terms: bound 1e-4 relative.
+        let expected = (N * N) as f64 * (1.0 - (-sigma_t * N as f64).exp());
+        assert!(
+            (s.deposited / expected - 1.0).abs() < 1e-4,
+            "deposited {} of {expected}",
+            s.deposited
+        );
+        // Albedo 1: nothing is absorbed, so what the last step streamed out of the grid
+        // equals what the particles scatter into it, less what the grid gained over that
+        // step: |source − leaving| = |Σφₙ − Σφₙ₋₁| ≤ Σ|φₙ − φₙ₋₁| = residual · Σφₙ. The slack
+        // of 1e-5 · source covers the f32 arithmetic of 16³ cells.
+        assert_eq!(s.absorbed, 0.0);
+        let held: f64 = s.fluence.iter().map(|&f| f as f64).sum();
+        let imbalance = (s.source - s.leaving).abs();
+        eprintln!(
+            "g {g}: imbalance {imbalance:.3e} = {:.2e} of the source; bound {:.3e}",
+            imbalance / s.source,
+            s.residual * held + 1e-5 * s.source
+        );
+        assert!(imbalance <= s.residual * held + 1e-5 * s.source, "g {g}");
+    }
 }
 
 /// The Monte Carlo reference's scattered fluence in the cube of [`medium`] lit head-on,

@@ -12,6 +12,8 @@
 //! - [`scatter`]: Monte Carlo multiple scattering (delta tracking, Henyey–Greenstein
 //!   sampling) through a scattering medium: where the light of a beam goes and how wide it
 //!   spreads.
+//! - [`scatter_view`]: the image of a scattering medium by Monte Carlo path tracing from the
+//!   eye (next-event estimation to the distant light).
 //! - [`graded_ball`]: an analytic graded-index ball lens (the exact object behind the light
 //!   bench's voxelised ball).
 //! - [`measure`]: the comparisons tests and the bench make between images of light.
@@ -32,6 +34,9 @@ pub mod rk4;
 pub mod scatter;
 #[cfg(test)]
 mod scatter_tests;
+pub mod scatter_view;
+#[cfg(test)]
+mod scatter_view_tests;
 #[cfg(test)]
 mod scene_tests;
 pub mod shading;

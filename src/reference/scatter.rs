@@ -220,7 +220,7 @@ pub enum Fate {
 pub const MAX_SCATTERINGS: u32 = 100_000;
 
 /// Distance from `p` (inside or on the box) along unit `d` to where it leaves the box.
-fn exit_distance(p: DVec3, d: DVec3, (lo, hi): (DVec3, DVec3)) -> f64 {
+pub(super) fn exit_distance(p: DVec3, d: DVec3, (lo, hi): (DVec3, DVec3)) -> f64 {
     let mut t = f64::INFINITY;
     for a in 0..3 {
         if d[a] > 0.0 {

@@ -85,8 +85,47 @@ impl Background<'_> {
     }
 }
 
-fn dvec(v: Vec3) -> DVec3 {
+pub(super) fn dvec(v: Vec3) -> DVec3 {
     DVec3::new(v.x as f64, v.y as f64, v.z as f64)
+}
+
+/// The world-space rays of a scene's camera through points of the image.
+pub(super) struct CameraRays {
+    world_from_view: glam::Mat4,
+    rotation: glam::Mat3,
+    eye: DVec3,
+    projection: [f64; 4],
+    orthographic: bool,
+}
+
+impl CameraRays {
+    pub(super) fn new(scene: &crate::scene::Scene, view: &ViewSetup) -> CameraRays {
+        CameraRays {
+            world_from_view: view.world_from_view,
+            rotation: glam::Mat3::from_mat4(view.world_from_view),
+            eye: dvec(view.world_from_view.w_axis.truncate()),
+            projection: view.projection.map(|v| v as f64),
+            orthographic: scene.camera.projection == Projection::Orthographic,
+        }
+    }
+
+    /// Origin and unit direction of the ray through image point (tx, ty) (pixel units; the
+    /// centre of pixel (x, y) is at (x + ½, y + ½)).
+    pub(super) fn ray(&self, tx: f64, ty: f64) -> (DVec3, DVec3) {
+        let [fx, fy, cx, cy] = self.projection;
+        let ndc = DVec3::new((tx - cx) / fx, (ty - cy) / fy, 1.0);
+        if self.orthographic {
+            let o = self
+                .world_from_view
+                .transform_point3(Vec3::new(ndc.x as f32, ndc.y as f32, 0.0));
+            (dvec(o), dvec(self.rotation * Vec3::Z))
+        } else {
+            (
+                self.eye,
+                dvec(self.rotation * Vec3::new(ndc.x as f32, ndc.y as f32, 1.0)).normalize(),
+            )
+        }
+    }
 }
 
 /// The specular term of a scene that has one.
@@ -143,9 +182,7 @@ pub fn render(
         b.set_position(0);
         b.set_length(height as u64);
     }
-    let eye = dvec(view.world_from_view.w_axis.truncate());
-    let [fx, fy, cx, cy] = view.projection.map(|v| v as f64);
-    let orthographic = scene.camera.projection == Projection::Orthographic;
+    let camera = CameraRays::new(scene, &view);
     let n = settings.samples_per_axis.max(1);
     let h = settings.view_step_voxels * medium.voxel_length();
     let rows: Vec<Vec<[f32; 4]>> = (0..height)
@@ -158,18 +195,7 @@ pub fn render(
                         for sx in 0..n {
                             let tx = px as f64 + (sx as f64 + 0.5) / n as f64;
                             let ty = py as f64 + (sy as f64 + 0.5) / n as f64;
-                            let ndc = DVec3::new((tx - cx) / fx, (ty - cy) / fy, 1.0);
-                            let (o, d) = if orthographic {
-                                let o =
-                                    view.world_from_view
-                                        .transform_point3(Vec3::new(ndc.x as f32, ndc.y as f32, 0.0));
-                                (dvec(o), dvec(rotation * Vec3::Z))
-                            } else {
-                                (
-                                    eye,
-                                    dvec(rotation * Vec3::new(ndc.x as f32, ndc.y as f32, 1.0)).normalize(),
-                                )
-                            };
+                            let (o, d) = camera.ray(tx, ty);
                             let c = view_ray(
                                 &medium,
                                 &grid,

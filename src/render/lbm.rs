@@ -205,6 +205,7 @@ pub fn solve(
             Buffer::new_storage(ctx, "lbm densities b", cells * 6 * 4)?,
         ],
         measure: Buffer::new_storage(ctx, "lbm measure", cells * 16)?,
+        source_g: Buffer::new_storage(ctx, "lbm source anisotropy", cells * 4)?,
     };
     let Run {
         iterations: done,
@@ -231,7 +232,7 @@ pub fn solve(
     let mut bytes = bytemuck::bytes_of(&header).to_vec();
     bytes.extend_from_slice(bytemuck::cast_slice(&fluence));
     let grid_buffer = upload(ctx, "lbm grid", &bytes)?;
-    let lattice_bytes = cells * (16 + 2 * 6 * 4 + 16) + bytes.len() as u64 + (table.len() * 16) as u64;
+    let lattice_bytes = cells * (16 + 2 * 6 * 4 + 16 + 4) + bytes.len() as u64 + (table.len() * 16) as u64;
     Ok(LbmLight {
         grid: grid_buffer,
         table: lattice.table,
@@ -260,6 +261,7 @@ struct Lattice {
     cells: Buffer,
     f: [Buffer; 2],
     measure: Buffer,
+    source_g: Buffer,
 }
 
 /// What [`iterate`] measured.
@@ -292,6 +294,7 @@ fn lattice_set<'a>(
         ("f_in", Resource::Buffer(&lattice.f[from])),
         ("f_out", Resource::Buffer(&lattice.f[1 - from])),
         ("measure", Resource::Buffer(&lattice.measure)),
+        ("source_g", Resource::Buffer(&lattice.source_g)),
     ])?;
     Ok(s)
 }
