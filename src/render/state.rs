@@ -275,7 +275,8 @@ impl State {
             ("view_medium", pixels * rgba, features.medium),
             ("beam_pos", 2 * cells * 16, beams && refraction),
             ("beam_aux", 2 * cells * 16, beams),
-            ("beam_power", 2 * cells * rgba, beams),
+            // Without refraction also each beam's power on the plane before (the view reads it).
+            ("beam_power", if refraction { 2 } else { 4 } * cells * rgba, beams),
             (
                 "light_acc",
                 LIGHT_RING * pyramid_texels(view.width, view.height, levels) * layout.channels as u64 * 4,
