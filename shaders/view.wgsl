@@ -215,7 +215,13 @@ fn view_step(px: vec2<u32>, k: u32, tile: u32) {
         // Single scattering through the phase function; the lattice's light below.
         light1 = lbm_seen(light_at(k, x1).color, -dir, value1);
     } else {
-        light1 = light_at(k, x1).color;
+        if (BEAMS && !REFRACTION) {
+            light1 = budgeted(beams_unscattered_through(k, x1, value1));
+        } else if (BEAMS) {
+            light1 = beams_light_through(k, x1, value1);
+        } else {
+            light1 = light_at(k, x1).color;
+        }
     }
     let l0 = select(load_view_light(i).rgb, light1, skipped);
     var i_d = s.rgb * segment_light(l0, light1, s.a) * P.light_color.rgb;

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use caustica::gpu::{Context, ContextDesc, DeviceSelector};
 use caustica::input::{fit_to_device, parse_size, InputArgs, Prepared};
-use caustica::render::{DebugView, RenderRequest, Renderer};
+use caustica::render::{accumulate, DebugView, RenderRequest, Renderer};
 use caustica::{Classify, ExitClass};
 
 use crate::Result;
@@ -63,6 +63,11 @@ pub struct RenderArgs {
     /// Print planes, ms per plane and total GPU time.
     #[arg(long)]
     timings: bool,
+    /// Average N renders whose planes and light grid are moved by fractions of their spacing
+    /// (removes banding and woodgrain that follow where the samples fall; N times the time).
+    /// Not with --debug-view, which shows one plane's buffer.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1024), conflicts_with = "debug_view")]
+    accumulate: u32,
 }
 
 fn parse_debug_view(s: &str) -> Result<DebugView, String> {
@@ -83,7 +88,11 @@ pub fn render(args: &RenderArgs) -> Result<()> {
         req.debug_view = v;
         req.debug_depth = args.at_depth;
     }
-    let out = renderer.render(&prepared, &req)?;
+    let out = accumulate(&mut renderer, &prepared, &req, args.accumulate, |done| {
+        if args.accumulate > 1 {
+            eprintln!("accumulated {done}/{}", args.accumulate);
+        }
+    })?;
     if ctx.validation_errors() > 0 {
         return Err(ValidationFailed {
             count: ctx.validation_errors(),

@@ -2,6 +2,7 @@
 //! the environment pass and read-back. [`Features`] says what a scene needs; the renderer
 //! allocates and runs only that.
 
+mod accumulate;
 pub mod bricks;
 mod features;
 pub mod gradient;
@@ -12,6 +13,7 @@ pub mod shaders;
 mod state;
 mod upload;
 
+pub use accumulate::{accumulate, jitter_sequence};
 pub use features::{DebugView, Features};
 pub use params::{Immediates, Params};
 // What the renderer takes and gives lives in `scene` (GPU-free, shared with the CPU reference).
@@ -82,6 +84,11 @@ pub struct RenderRequest {
     /// Checked between submissions: when set, the render stops with [`RenderError::Cancelled`].
     /// Renders with a flag are submitted in smaller chunks so they stop sooner.
     pub cancel: Option<Arc<AtomicBool>>,
+    /// Offsets of the sampling lattices, each a fraction in [0, 1): the planes (of the plane
+    /// distance, toward the camera) and the light grid (of a cell, along x and y). Zero for the
+    /// standard sweep; [`accumulate`] averages renders over a sequence of them, so that
+    /// patterns that follow where the planes and beams fall average out.
+    pub jitter: [f32; 3],
 }
 
 impl RenderRequest {
@@ -94,6 +101,7 @@ impl RenderRequest {
             progress: false,
             safeguards_off: 0,
             cancel: None,
+            jitter: [0.0; 3],
         }
     }
 }

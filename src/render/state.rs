@@ -275,7 +275,8 @@ impl State {
             ("view_medium", pixels * rgba, features.medium),
             ("beam_pos", 2 * cells * 16, beams && refraction),
             ("beam_aux", 2 * cells * 16, beams),
-            ("beam_power", 2 * cells * rgba, beams),
+            // Without refraction also each beam's power on the plane before (the view reads it).
+            ("beam_power", if refraction { 2 } else { 4 } * cells * rgba, beams),
             (
                 "light_acc",
                 LIGHT_RING * pyramid_texels(view.width, view.height, levels) * layout.channels as u64 * 4,
@@ -343,7 +344,8 @@ pub(super) fn run(
                 .into(),
         ));
     }
-    let view = ViewSetup::new(scene, vol.dims, vol.spacing, w, h).map_err(RenderError::Setup)?;
+    let mut view = ViewSetup::new(scene, vol.dims, vol.spacing, w, h).map_err(RenderError::Setup)?;
+    view.shift_planes(req.jitter[0]).map_err(RenderError::Setup)?;
     let planes_run = if req.debug_view == DebugView::Image || req.debug_view == DebugView::Medium {
         view.planes
     } else {
@@ -351,7 +353,9 @@ pub(super) fn run(
     };
     let light = light_direction(&scene.light);
     let deposits = features.transport == LightTransport::Beams && features.refraction;
-    let grid = view.beam_grid(light, scene.quality.beams_per_texel, !deposits);
+    let grid = view
+        .beam_grid(light, scene.quality.beams_per_texel, !deposits)
+        .shifted(req.jitter[1], req.jitter[2]);
     let layout = Layout::new(&view, grid, light_channels(&features, req.debug_view));
     let windows = light_windows(&view, &grid, light, features.refraction);
 

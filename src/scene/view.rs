@@ -68,6 +68,19 @@ impl BeamGrid {
     pub fn count(&self) -> u64 {
         self.width as u64 * self.height as u64
     }
+
+    /// The grid with its cells moved back by the fractions `fx`, `fy` ∈ [0, 1) of a cell, one
+    /// more column and row where moved so that it still covers what it covered.
+    pub fn shifted(self, fx: f32, fy: f32) -> BeamGrid {
+        let (fx, fy) = (fx.clamp(0.0, 1.0), fy.clamp(0.0, 1.0));
+        BeamGrid {
+            x0: self.x0 - fx * self.stride,
+            y0: self.y0 - fy * self.stride,
+            width: self.width + u32::from(fx > 0.0),
+            height: self.height + u32::from(fy > 0.0),
+            ..self
+        }
+    }
 }
 
 /// The view transform and plane sweep of one render.
@@ -273,6 +286,27 @@ impl ViewSetup {
             width: (((hi.x - x0) / stride).ceil() as u32).max(1),
             height: (((hi.y - y0) / stride).ceil() as u32).max(1),
         }
+    }
+
+    /// Moves the planes toward the camera by the fraction `f` ∈ [0, 1) of the plane distance,
+    /// with one more plane so that the sweep still starts in front of the volume. A
+    /// perspective camera whose near plane is that close (inside or at the volume) keeps its
+    /// planes: the sweep starts at the near plane.
+    pub fn shift_planes(&mut self, f: f32) -> Result<(), String> {
+        let f = f.clamp(0.0, 1.0);
+        let earlier = self.z_first - f * self.step;
+        if f == 0.0 || (self.perspective && earlier < NEAR_PLANE * self.radius) {
+            return Ok(());
+        }
+        if self.planes >= MAX_PLANES {
+            return Err(format!(
+                "{} planes needed (more than {MAX_PLANES}); increase quality.sample_distance",
+                self.planes + 1
+            ));
+        }
+        self.z_first = earlier;
+        self.planes += 1;
+        Ok(())
     }
 
     /// Volume texture coordinates of a view-space point.
