@@ -8,6 +8,18 @@ fn light_at(k: u32, p: vec3<f32>) -> LightSample {
     return backward_light_at(k, p);
 }
 
+// The light arriving at a view sample p on plane k (value: the data value there). With beams,
+// the last segment's attenuation is taken along p's own light line (beams.wgsl).
+fn light_through(k: u32, p: vec3<f32>, value: f32) -> vec3<f32> {
+    if (BEAMS && !REFRACTION) {
+        return budgeted(beams_unscattered_through(k, p, value));
+    }
+    if (BEAMS) {
+        return beams_light_through(k, p, value);
+    }
+    return light_at(k, p).color;
+}
+
 // The ray's position on plane k (view space).
 fn view_position(px: vec2<u32>, i: u32, k: u32) -> vec3<f32> {
     if (REFRACTION) {
@@ -213,15 +225,9 @@ fn view_step(px: vec2<u32>, k: u32, tile: u32) {
         light1 = spread_seen(k, x1, -dir, value1);
     } else if (LBM) {
         // Single scattering through the phase function; the lattice's light below.
-        light1 = lbm_seen(light_at(k, x1).color, -dir, value1);
+        light1 = lbm_seen(light_through(k, x1, value1), -dir, value1);
     } else {
-        if (BEAMS && !REFRACTION) {
-            light1 = budgeted(beams_unscattered_through(k, x1, value1));
-        } else if (BEAMS) {
-            light1 = beams_light_through(k, x1, value1);
-        } else {
-            light1 = light_at(k, x1).color;
-        }
+        light1 = light_through(k, x1, value1);
     }
     let l0 = select(load_view_light(i).rgb, light1, skipped);
     var i_d = s.rgb * segment_light(l0, light1, s.a) * P.light_color.rgb;
