@@ -1,8 +1,12 @@
 //! Progressive refinement: which quality level to render next. While the user drags, the
 //! coarsest level keeps up with the input; once idle, each finished level asks for the next
-//! finer one until the full-quality frame, the same render `caustica render` makes.
+//! finer one until the full-quality frame, the same render `caustica render` makes. While the
+//! view stays idle after that, further full-quality passes with their planes and light grid
+//! moved are averaged into it ([`ACCUMULATE`], as `caustica render --accumulate`).
 
 use std::time::{Duration, Instant};
+
+use crate::render::RenderedImage;
 
 /// One quality level: image scale and sample-distance multiplier against the full render.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -36,6 +40,11 @@ pub const LEVELS: [Level; 3] = [
 
 pub const FULL: usize = LEVELS.len() - 1;
 
+/// Full-quality passes averaged while the view stays idle (the first is the full frame): the
+/// planes and the light grid move between them (`render::jitter_sequence`), so banding that
+/// follows where the samples fall averages out.
+pub const ACCUMULATE: u32 = 8;
+
 /// How long after the last change the view counts as idle, so refinement may start.
 pub const IDLE_AFTER: Duration = Duration::from_millis(200);
 
@@ -47,11 +56,13 @@ impl Level {
     }
 }
 
-/// A render to start: the view version it shows and the level.
+/// A render to start: the view version it shows, the level and, at the full level, the
+/// accumulation pass (0: the full frame itself).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Job {
     pub version: u64,
     pub level: usize,
+    pub pass: u32,
 }
 
 /// The scheduler. The caller bumps [`Progressive::changed`] on every edit and asks
@@ -63,6 +74,8 @@ pub struct Progressive {
     in_flight: Option<Job>,
     /// The best level finished for the current version.
     done: Option<usize>,
+    /// Full-quality passes finished for the current version.
+    passes: u32,
 }
 
 impl Progressive {
@@ -72,6 +85,7 @@ impl Progressive {
             last_change: now.checked_sub(IDLE_AFTER).unwrap_or(now),
             in_flight: None,
             done: None,
+            passes: 0,
         }
     }
 
@@ -86,6 +100,7 @@ impl Progressive {
         self.version += 1;
         self.last_change = now;
         self.done = None;
+        self.passes = 0;
         self.in_flight.is_some_and(|j| j.level > 0)
     }
 
@@ -93,9 +108,15 @@ impl Progressive {
         now.duration_since(self.last_change) >= IDLE_AFTER
     }
 
-    /// The full-quality frame of the current view is on screen and nothing is pending.
+    /// The full-quality frame of the current view is on screen and nothing but accumulation
+    /// passes is pending.
     pub fn settled(&self) -> bool {
-        self.done == Some(FULL) && self.in_flight.is_none()
+        self.done == Some(FULL) && self.in_flight.is_none_or(|j| j.pass > 0)
+    }
+
+    /// Every accumulation pass of the current view is on screen.
+    pub fn accumulated(&self) -> bool {
+        self.settled() && self.passes >= ACCUMULATE
     }
 
     /// The next render to start, if any (None while one is in flight or all is done).
@@ -103,14 +124,16 @@ impl Progressive {
         if self.in_flight.is_some() {
             return None;
         }
-        let level = match self.done {
-            None => 0,
-            Some(l) if l < FULL && self.is_idle(now) => l + 1,
+        let (level, pass) = match self.done {
+            None => (0, 0),
+            Some(l) if l < FULL && self.is_idle(now) => (l + 1, 0),
+            Some(FULL) if self.passes < ACCUMULATE && self.is_idle(now) => (FULL, self.passes),
             Some(_) => return None,
         };
         let job = Job {
             version: self.version,
             level,
+            pass,
         };
         self.in_flight = Some(job);
         Some(job)
@@ -124,6 +147,9 @@ impl Progressive {
         }
         if ok && job.version == self.version {
             self.done = Some(self.done.map_or(job.level, |d| d.max(job.level)));
+            if job.level == FULL {
+                self.passes = self.passes.max(job.pass + 1);
+            }
             return true;
         }
         // An outdated coarse frame is still better than nothing while dragging.
@@ -132,13 +158,68 @@ impl Progressive {
 
     /// When the caller should look again even without input (idle refinement).
     pub fn wake_at(&self) -> Option<Instant> {
-        (self.in_flight.is_none() && !self.settled()).then(|| self.last_change + IDLE_AFTER)
+        (self.in_flight.is_none() && !self.accumulated()).then(|| self.last_change + IDLE_AFTER)
+    }
+}
+
+/// The image to show for a finished frame: at the full level the mean of its passes so far
+/// (`sum` holds their sum and count; pass 0 starts it), coarser levels as they are.
+pub fn accumulate(sum: &mut Option<(RenderedImage, u32)>, job: Job, image: RenderedImage) -> RenderedImage {
+    if job.level != FULL {
+        *sum = None;
+        return image;
+    }
+    match sum {
+        Some((s, n)) if job.pass > 0 && (s.width, s.height) == (image.width, image.height) => {
+            for (a, p) in s.pixels.iter_mut().zip(&image.pixels) {
+                for c in 0..4 {
+                    a[c] += p[c];
+                }
+            }
+            *n += 1;
+            let scale = 1.0 / *n as f32;
+            RenderedImage {
+                width: s.width,
+                height: s.height,
+                pixels: s.pixels.iter().map(|p| p.map(|v| v * scale)).collect(),
+            }
+        }
+        _ => {
+            *sum = Some((image.clone(), 1));
+            image
+        }
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn flat(v: f32) -> RenderedImage {
+        RenderedImage {
+            width: 2,
+            height: 1,
+            pixels: vec![[v; 4]; 2],
+        }
+    }
+
+    #[test]
+    fn full_passes_are_averaged_and_a_new_full_frame_starts_over() {
+        let mut sum = None;
+        let job = |level, pass| Job {
+            version: 1,
+            level,
+            pass,
+        };
+        assert_eq!(accumulate(&mut sum, job(FULL, 0), flat(1.0)).pixels[0][0], 1.0);
+        assert_eq!(accumulate(&mut sum, job(FULL, 1), flat(2.0)).pixels[0][0], 1.5);
+        assert_eq!(accumulate(&mut sum, job(FULL, 2), flat(6.0)).pixels[1][3], 3.0);
+        // The next view's full frame replaces the sum; a coarse frame drops it.
+        assert_eq!(accumulate(&mut sum, job(FULL, 0), flat(4.0)).pixels[0][0], 4.0);
+        assert_eq!(accumulate(&mut sum, job(0, 0), flat(8.0)).pixels[0][0], 8.0);
+        assert!(sum.is_none());
+        assert_eq!(accumulate(&mut sum, job(FULL, 3), flat(5.0)).pixels[0][0], 5.0);
+    }
 
     #[test]
     fn refines_to_full_when_idle() {
@@ -150,8 +231,37 @@ mod tests {
             assert!(p.next(t0).is_none(), "one render at a time");
             assert!(p.finished(job, true));
         }
-        assert_eq!(seen, vec![0, 1, 2]);
-        assert!(p.settled());
+        let passes: Vec<u32> = (1..ACCUMULATE).collect();
+        assert_eq!(seen[..3], [0, 1, 2]);
+        assert!(seen[3..].iter().all(|&l| l == FULL), "{seen:?}");
+        assert_eq!(seen.len(), 2 + ACCUMULATE as usize, "{seen:?} (passes {passes:?})");
+        assert!(p.settled() && p.accumulated());
+        assert_eq!(p.wake_at(), None, "nothing left to do");
+    }
+
+    #[test]
+    fn accumulation_passes_follow_the_full_frame_and_an_edit_cancels_them() {
+        let t0 = Instant::now();
+        let mut p = Progressive::new(t0);
+        for _ in 0..3 {
+            let j = p.next(t0).unwrap();
+            assert_eq!(j.pass, 0);
+            p.finished(j, true);
+        }
+        assert!(p.settled() && !p.accumulated());
+        let first = p.next(t0).unwrap();
+        assert_eq!((first.level, first.pass), (FULL, 1));
+        assert!(p.settled(), "an accumulation pass in flight leaves the view settled");
+        assert!(p.finished(first, true));
+        let second = p.next(t0).unwrap();
+        assert_eq!(second.pass, 2);
+        // An edit during a pass cancels it, and the view starts over from the coarse level.
+        let t1 = t0 + Duration::from_millis(10);
+        assert!(p.changed(t1));
+        assert!(!p.finished(second, false));
+        assert!(!p.settled());
+        let coarse = p.next(t1).unwrap();
+        assert_eq!((coarse.level, coarse.pass), (0, 0));
     }
 
     #[test]

@@ -22,6 +22,7 @@ use super::progressive::{Progressive, FULL, LEVELS};
 use super::raster::{Painter, Target};
 use super::worker::{Reply, Request, Worker};
 use super::ViewError;
+use crate::render::RenderedImage;
 use crate::scene::Scene;
 use present::{blit, pack, Shown};
 
@@ -59,6 +60,8 @@ pub struct App {
     painter: Painter,
     surface: Option<Surface>,
     shown: Option<Shown>,
+    /// The sum of the full-quality passes of the view on screen and their count.
+    accumulated: Option<(RenderedImage, u32)>,
     /// What the current version looks like, to detect edits.
     last_scene: Scene,
     last_render_size: (u32, u32),
@@ -82,6 +85,7 @@ impl App {
             painter: Painter::default(),
             surface: None,
             shown: None,
+            accumulated: None,
             last_scene,
             last_render_size: (0, 0),
             cancel: Arc::new(AtomicBool::new(false)),
@@ -125,11 +129,17 @@ impl App {
                     duration_ms,
                 } => {
                     if self.progressive.finished(job, true) {
+                        let name = if job.pass > 0 {
+                            "accumulate"
+                        } else {
+                            LEVELS[job.level].name
+                        };
+                        let image = super::progressive::accumulate(&mut self.accumulated, job, image);
                         self.shown = Some(pack(&image));
                         if self.opts.frame_log {
                             eprintln!(
                                 "frame: {:<11} {}x{} {:>4} planes {:>9.1} ms",
-                                LEVELS[job.level].name, image.width, image.height, stats.planes, duration_ms
+                                name, image.width, image.height, stats.planes, duration_ms
                             );
                         }
                         if self.opts.orbit_frames > 0 {
@@ -138,7 +148,7 @@ impl App {
                             super::controls::orbit(&mut self.state.scene.camera, step_px, 0.0);
                         }
                         let s = &mut self.state.status;
-                        s.level = LEVELS[job.level].name;
+                        s.level = name;
                         s.frame_ms = duration_ms;
                         s.planes = stats.planes;
                         s.render_size = (image.width, image.height);

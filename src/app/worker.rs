@@ -11,11 +11,13 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::Instant;
 
-use crate::render::{EnvMap, PreparedScene, RenderError, RenderRequest, RenderStats, RenderedImage, Renderer};
+use crate::render::{
+    jitter_sequence, EnvMap, PreparedScene, RenderError, RenderRequest, RenderStats, RenderedImage, Renderer,
+};
 use crate::scene::{Scene, VolumeSource};
 use crate::{Classify, ExitClass};
 
-use super::progressive::Job;
+use super::progressive::{Job, ACCUMULATE};
 
 /// What the window asks for.
 pub enum Request {
@@ -212,6 +214,8 @@ fn handle(
             let result = set_scene(renderer, prepared, allow_downsample, *scene, send).and_then(|()| {
                 let mut req = RenderRequest::new(width, height);
                 req.cancel = Some(cancel);
+                // Accumulation passes move the planes and the light grid (pass 0 does not).
+                req.jitter = jitter_sequence(job.pass, ACCUMULATE);
                 renderer.render(prepared, &req)
             });
             send(match result {
@@ -275,7 +279,11 @@ mod tests {
         let mut worker = Worker::start(Renderer::new(ctx.clone()).unwrap(), worker_prepared, true, || {});
         let dir = std::env::temp_dir().join(format!("caustica-worker-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
-        let cancelled = Job { version: 7, level: 2 };
+        let cancelled = Job {
+            version: 7,
+            level: 2,
+            pass: 0,
+        };
         worker.send(Request::Frame {
             job: cancelled,
             scene: Box::new(scene.clone()),
@@ -361,7 +369,11 @@ mod tests {
             "the frames differ"
         );
         let mut worker = Worker::start(Renderer::new(ctx.clone()).unwrap(), prepared, true, || {});
-        let job = Job { version: 1, level: 0 };
+        let job = Job {
+            version: 1,
+            level: 0,
+            pass: 0,
+        };
         worker.send(Request::Frame {
             job,
             scene: Box::new(later),
@@ -385,7 +397,11 @@ mod tests {
         broken.volume.set_frame(2);
         for version in [2, 3] {
             worker.send(Request::Frame {
-                job: Job { version, level: 0 },
+                job: Job {
+                    version,
+                    level: 0,
+                    pass: 0,
+                },
                 scene: Box::new(broken.clone()),
                 width: 32,
                 height: 24,
