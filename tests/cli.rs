@@ -301,6 +301,23 @@ fn unknown_debug_view_is_a_usage_error() {
 }
 
 #[test]
+fn accumulate_with_a_debug_view_or_zero_renders_is_a_usage_error() {
+    let s = Scratch::new("accumulate");
+    render_fails(
+        &s,
+        &["--scene", "ball-lens", "--accumulate", "4", "--debug-view", "light"],
+        EXIT_USAGE,
+        &["--accumulate", "--debug-view"],
+    );
+    render_fails(
+        &s,
+        &["--scene", "ball-lens", "--accumulate", "0"],
+        EXIT_USAGE,
+        &["--accumulate", "0"],
+    );
+}
+
+#[test]
 fn render_without_input_says_what_to_give() {
     let s = Scratch::new("no-input");
     render_fails(&s, &[], EXIT_INPUT, &["give a scene file", "--scene"]);
