@@ -54,17 +54,19 @@ fn hg_sampling_follows_the_phase_function() {
     }
 }
 
-/// Extinction rising linearly from σ₀ at z = 0 to 2σ₀ at z = L, no scattering.
-struct Ramp {
-    sigma0: f64,
-    length: f64,
+/// Extinction rising linearly from σ₀ at z = 0 to 2σ₀ at z = L, scattering `albedo` of it
+/// (isotropically). Also the view gather's test medium.
+pub(super) struct Ramp {
+    pub sigma0: f64,
+    pub length: f64,
+    pub albedo: f64,
 }
 
 impl ScatteringMedium for Ramp {
     fn coefficients(&self, p: DVec3) -> Coefficients {
         Coefficients {
             extinction: self.sigma0 * (1.0 + p.z / self.length),
-            albedo: 0.0,
+            albedo: self.albedo,
             g: 0.0,
         }
     }
@@ -83,6 +85,7 @@ fn delta_tracking_transmits_beer_lambert_through_a_heterogeneous_medium() {
     let medium = Ramp {
         sigma0: 0.5,
         length: 2.0,
+        albedo: 0.0,
     };
     let n = 40_000u64;
     let through = run(

@@ -4,7 +4,8 @@
 
 use glam::DVec3;
 
-use super::scatter::{slab_balance, Coefficients, Rng, ScatteringMedium, Slab};
+use super::scatter::{slab_balance, Rng, Slab};
+use super::scatter_tests::Ramp;
 use super::scatter_view::{sample_radiance, transmittance, GatherLight, GatherSettings};
 use crate::transfer::scattering::hg_relative;
 
@@ -76,35 +77,12 @@ fn single_scattering_in_a_slab_is_the_closed_form() {
     }
 }
 
-/// Extinction rising linearly from σ₀ at z = 0 to 2σ₀ at z = L, scattering half of it.
-struct Ramp {
-    sigma0: f64,
-    length: f64,
-}
-
-impl ScatteringMedium for Ramp {
-    fn coefficients(&self, p: DVec3) -> Coefficients {
-        Coefficients {
-            extinction: self.sigma0 * (1.0 + p.z / self.length),
-            albedo: 0.5,
-            g: 0.0,
-        }
-    }
-
-    fn majorant(&self) -> f64 {
-        2.0 * self.sigma0
-    }
-
-    fn bounds(&self) -> (DVec3, DVec3) {
-        (DVec3::new(-1.0, -1.0, 0.0), DVec3::new(1.0, 1.0, self.length))
-    }
-}
-
 #[test]
 fn ratio_tracking_transmits_beer_lambert_through_a_heterogeneous_medium() {
     let medium = Ramp {
         sigma0: 1.5,
         length: 2.0,
+        albedo: 0.5,
     };
     // ∫σ dz = σ₀ L (1 + 1/2) = 4.5 along the axis; e^{−4.5} ≈ 0.011 reaches the roulette.
     let exact = (-4.5f64).exp();
