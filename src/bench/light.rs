@@ -168,9 +168,16 @@ pub fn ball_scene(volume: &Volume, tf: &TransferFunctions, radius: f64) -> Scene
     let extent = Vec3::new(volume.dims[0] as f32, volume.dims[1] as f32, volume.dims[2] as f32);
     // The view spans 2·(bounding radius)/zoom vertically.
     let zoom = extent.length() / (4.0 * radius as f32);
+    head_on_scene("ball lens (light bench)", tf, zoom, Quality::default())
+}
+
+/// Orthographic and head-on at `zoom` (the view spans 2·(bounding radius)/zoom vertically),
+/// hard white light along the view axis, black background: the scenes of the light and
+/// scattering benches.
+pub(crate) fn head_on_scene(name: &str, tf: &TransferFunctions, zoom: f32, quality: Quality) -> Scene {
     Scene {
         volume: VolumeSource::Builtin {
-            name: "ball lens (light bench)".into(),
+            name: name.into(),
             resolution: 0,
         },
         eta_volume: None,
@@ -193,7 +200,7 @@ pub fn ball_scene(volume: &Volume, tf: &TransferFunctions, radius: f64) -> Scene
         shading: Shading::default(),
         clip: None,
         environment: Environment::Color { color: [0.0; 3] },
-        quality: Quality::default(),
+        quality,
     }
 }
 

@@ -10,9 +10,7 @@ use crate::reference::measure::ScalarImage;
 use crate::reference::plane_light::nearest_sweep_plane;
 use crate::reference::scatter::Slab;
 use crate::render::PreparedScene;
-use crate::scene::{
-    Camera, Environment, Light, Projection, Quality, Scene, Shading, TransferSource, ViewSetup, VolumeSource,
-};
+use crate::scene::{Quality, Scene, ViewSetup};
 use crate::transfer::{ColorRamp, Curve, TransferFunctions};
 use crate::volume::{Volume, VolumeError};
 
@@ -87,34 +85,8 @@ pub fn slab_volume(hole: Option<f32>) -> Result<Volume, VolumeError> {
 /// Orthographic and head-on, the light along the view axis, black background; the frame spans
 /// the volume's side (one pixel per voxel at N²).
 pub fn slab_scene(tf: &TransferFunctions, quality: Quality) -> Scene {
-    Scene {
-        volume: VolumeSource::Builtin {
-            name: "scattering slab".into(),
-            resolution: 0,
-        },
-        eta_volume: None,
-        window: Some([0.0, 1.0]),
-        transfer: TransferSource::Inline(tf.clone()),
-        camera: Camera {
-            yaw_deg: 0.0,
-            pitch_deg: 0.0,
-            projection: Projection::Orthographic,
-            // The view spans 2·(bounding radius)/zoom: the cube's diagonal √3 N over √3.
-            zoom: 3f32.sqrt(),
-            ..Camera::default()
-        },
-        light: Light {
-            polar_deg: 0.0,
-            azimuth_deg: 0.0,
-            color: [1.0; 3],
-            intensity: 1.0,
-            softness: 0.0,
-        },
-        shading: Shading::default(),
-        clip: None,
-        environment: Environment::Color { color: [0.0; 3] },
-        quality,
-    }
+    // The view spans 2·(bounding radius)/zoom: the cube's diagonal √3 N over √3.
+    super::light::head_on_scene("scattering slab", tf, 3f32.sqrt(), quality)
 }
 
 /// A sweep plane near a wanted depth.
