@@ -63,6 +63,40 @@ impl Sphere {
 }
 
 /// The green channel of the GPU's image.
+/// A sphere rendered with spread, lbm and none, its Monte Carlo image (256 samples per pixel,
+/// the non-scattering fraction shaded as the GPU shades it) and the modes' profile L1 against
+/// it (along the light, radial).
+struct Measured {
+    spread: PreparedScene,
+    frame: Frame,
+    mc: GatherImage,
+    images: [(&'static str, Vec<f64>); 3],
+    l1: Vec<(f64, f64)>,
+}
+
+impl Sphere {
+    fn measure(&self, name: &str) -> Measured {
+        let mut gpu = Gpu::new();
+        let spread = self.scene(MultipleScattering::Spread);
+        let frame = Frame::of(&spread);
+        let mc = monte_carlo(&spread, 256, 1, u32::MAX, true);
+        let images = [
+            ("spread", render(&mut gpu, &spread)),
+            ("lbm", render(&mut gpu, &self.scene(MultipleScattering::Lbm))),
+            ("none", render(&mut gpu, &self.scene(MultipleScattering::None))),
+        ];
+        let views: Vec<(&str, &[f64])> = images.iter().map(|(n, i)| (*n, i.as_slice())).collect();
+        let l1 = compare(name, &frame, &mc, &views);
+        Measured {
+            spread,
+            frame,
+            mc,
+            images,
+            l1,
+        }
+    }
+}
+
 fn render(gpu: &mut Gpu, p: &PreparedScene) -> Vec<f64> {
     let out = gpu.render(p, &RenderRequest::new(SIZE, SIZE));
     out.image.pixels.iter().map(|p| p[1] as f64).collect()
@@ -278,17 +312,7 @@ fn a_faint_sphere_scatters_the_light_once_like_the_monte_carlo_light() {
         g: 0.6,
         polar_deg: 70.0,
     };
-    let mut gpu = Gpu::new();
-    let spread = s.scene(MultipleScattering::Spread);
-    let frame = Frame::of(&spread);
-    let mc = monte_carlo(&spread, 256, 1, u32::MAX, true);
-    let images = [
-        ("spread", render(&mut gpu, &spread)),
-        ("lbm", render(&mut gpu, &s.scene(MultipleScattering::Lbm))),
-        ("none", render(&mut gpu, &s.scene(MultipleScattering::None))),
-    ];
-    let views: Vec<(&str, &[f64])> = images.iter().map(|(n, i)| (*n, i.as_slice())).collect();
-    let l1 = compare("faint sphere", &frame, &mc, &views);
+    let l1 = s.measure("faint sphere").l1;
     // Measured: spread 0.189 along the light, 0.224 radial, 10–25 % too bright inside the
     // disc: it sees its scattered light as isotropic, while light scattered once in a faint
     // medium still travels near the light's direction (HG(g) about it) and the particles send
@@ -315,19 +339,16 @@ fn a_translucent_sphere_lit_from_the_side_glows_into_its_shadow_like_the_monte_c
         g: 0.6,
         polar_deg: 70.0,
     };
-    let mut gpu = Gpu::new();
-    let spread = s.scene(MultipleScattering::Spread);
-    let frame = Frame::of(&spread);
-    let mc = monte_carlo(&spread, 256, 1, u32::MAX, true);
-    let images = [
-        ("spread", render(&mut gpu, &spread)),
-        ("lbm", render(&mut gpu, &s.scene(MultipleScattering::Lbm))),
-        ("none", render(&mut gpu, &s.scene(MultipleScattering::None))),
-    ];
-    let views: Vec<(&str, &[f64])> = images.iter().map(|(n, i)| (*n, i.as_slice())).collect();
-    let l1 = compare("translucent sphere", &frame, &mc, &views);
+    let Measured {
+        spread,
+        frame,
+        mc,
+        images,
+        l1,
+    } = s.measure("translucent sphere");
     if let Ok(path) = std::env::var("CAUSTICA_GLOW_PICTURE") {
         // Less noise for the eye than the profiles need: 4096 samples per pixel.
+        let views: Vec<(&str, &[f64])> = images.iter().map(|(n, i)| (*n, i.as_slice())).collect();
         save_picture(&path, &monte_carlo(&spread, 4096, 5, u32::MAX, true).mean, &views);
     }
 
