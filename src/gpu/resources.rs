@@ -105,6 +105,14 @@ impl Buffer {
         Self::new(ctx, label, size, usage, MemoryLocation::CpuToGpu)
     }
 
+    /// A storage buffer the CPU fills once with `bytes` for shaders to read (parameters,
+    /// tables).
+    pub fn new_storage_from(ctx: &Arc<Context>, label: &str, bytes: &[u8]) -> Result<Self, GpuError> {
+        let mut b = Self::new_upload(ctx, label, bytes.len() as u64, vk::BufferUsageFlags::STORAGE_BUFFER)?;
+        b.write(bytes)?;
+        Ok(b)
+    }
+
     /// A buffer only the GPU reads and writes (shader storage, fills, copies and indirect
     /// dispatch arguments). Larger than
     /// the device's storage buffer range is out of memory: the renderer then retries smaller.

@@ -10,7 +10,6 @@
 
 use std::sync::Arc;
 
-use ash::vk;
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 
@@ -152,12 +151,6 @@ pub struct VolumeInput<'a> {
     pub light_in_texture: Vec3,
 }
 
-fn upload(ctx: &Arc<Context>, label: &str, bytes: &[u8]) -> Result<Buffer, GpuError> {
-    let mut b = Buffer::new_upload(ctx, label, bytes.len() as u64, vk::BufferUsageFlags::STORAGE_BUFFER)?;
-    b.write(bytes)?;
-    Ok(b)
-}
-
 /// Deposits, diffuses to the residual, and returns the grid for the view.
 pub fn solve(
     ctx: &Arc<Context>,
@@ -197,8 +190,8 @@ pub fn solve(
         table: [TABLE_SIZE as f32, 0.0, 0.0, 0.0],
     };
     let lattice = Lattice {
-        params: upload(ctx, "lbm params", bytemuck::bytes_of(&params))?,
-        table: upload(ctx, "lbm table", bytemuck::cast_slice(&table))?,
+        params: Buffer::new_storage_from(ctx, "lbm params", bytemuck::bytes_of(&params))?,
+        table: Buffer::new_storage_from(ctx, "lbm table", bytemuck::cast_slice(&table))?,
         cells: Buffer::new_storage(ctx, "lbm cells", cells * 16)?,
         f: [
             Buffer::new_storage(ctx, "lbm densities a", cells * 6 * 4)?,
@@ -231,7 +224,7 @@ pub fn solve(
     };
     let mut bytes = bytemuck::bytes_of(&header).to_vec();
     bytes.extend_from_slice(bytemuck::cast_slice(&fluence));
-    let grid_buffer = upload(ctx, "lbm grid", &bytes)?;
+    let grid_buffer = Buffer::new_storage_from(ctx, "lbm grid", &bytes)?;
     let lattice_bytes = cells * (16 + 2 * 6 * 4 + 16 + 4) + bytes.len() as u64 + (table.len() * 16) as u64;
     Ok(LbmLight {
         grid: grid_buffer,

@@ -8,7 +8,6 @@
 use std::io::IsTerminal;
 use std::sync::Arc;
 
-use ash::vk;
 use glam::Mat4;
 
 use crate::gpu::{Buffer, ComputePipeline, Context, DescriptorSet, GpuError, Recorder, Resource, Timestamps};
@@ -403,40 +402,26 @@ pub(super) fn run(
         None => (&lbm_unused.0, &lbm_unused.1),
     };
 
-    let mut params = Buffer::new_upload(
+    let params = Buffer::new_storage_from(
         ctx,
         "params",
-        std::mem::size_of::<Params>() as u64,
-        vk::BufferUsageFlags::STORAGE_BUFFER,
+        bytemuck::bytes_of(&make_params(
+            prepared,
+            &view,
+            &layout,
+            cached.textures.env_levels,
+            cached.textures.brick_dims,
+        )),
     )?;
-    params.write(bytemuck::bytes_of(&make_params(
-        prepared,
-        &view,
-        &layout,
-        cached.textures.env_levels,
-        cached.textures.brick_dims,
-    )))?;
     let state = State::new(ctx, &view, &layout, &features, precision)?;
-    let mut window_buffer = Buffer::new_upload(
-        ctx,
-        "light windows",
-        (windows.len() * 16) as u64,
-        vk::BufferUsageFlags::STORAGE_BUFFER,
-    )?;
-    window_buffer.write(bytemuck::cast_slice(&windows))?;
+    let window_buffer = Buffer::new_storage_from(ctx, "light windows", bytemuck::cast_slice(&windows))?;
     // ω and g per data value for the spread mode (a placeholder entry pair otherwise).
     let table = if features.scatter {
         crate::transfer::scattering::scattering_table(&prepared.tf)
     } else {
         vec![[0.0; 4]; 2]
     };
-    let mut scatter_table = Buffer::new_upload(
-        ctx,
-        "scatter table",
-        (table.len() * 16) as u64,
-        vk::BufferUsageFlags::STORAGE_BUFFER,
-    )?;
-    scatter_table.write(bytemuck::cast_slice(&table))?;
+    let scatter_table = Buffer::new_storage_from(ctx, "scatter table", bytemuck::cast_slice(&table))?;
     let bytes = w as u64 * h as u64 * 16;
     let mut readback = Buffer::new_readback(ctx, "output readback", bytes)?;
     let ts = Timestamps::new(ctx, 2)?;

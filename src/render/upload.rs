@@ -204,13 +204,7 @@ impl SceneTextures {
         let particle_table = it.next().ok_or_else(missing)?;
         let medium_table = it.next().ok_or_else(missing)?;
         let env = it.next().ok_or_else(missing)?;
-        let mut bricks = Buffer::new_upload(
-            ctx,
-            "bricks",
-            (occupancy.flags.len() * 4) as u64,
-            ash::vk::BufferUsageFlags::STORAGE_BUFFER,
-        )?;
-        bricks.write(bytemuck::cast_slice(&occupancy.flags))?;
+        let bricks = Buffer::new_storage_from(ctx, "bricks", bytemuck::cast_slice(&occupancy.flags))?;
         let textures = SceneTextures {
             volume,
             gradient,
