@@ -485,7 +485,7 @@ fn beams_step(ij: vec2<u32>, k: u32) {
     }
 
     if (!REFRACTION) {
-        store_beam_power(front_power_index(k, index), vec4<f32>(front, 0.0));
+        store_beam_power(front_power_region(k) * beam_count() + index, vec4<f32>(front, 0.0));
     }
     if (SCATTER) {
         spread_step(index, k, b, lost_before, x0, value_front, du, dv);
@@ -517,37 +517,44 @@ fn budgeted(c: vec3<f32>) -> vec3<f32> {
     return c;
 }
 
-// Power of beam cell c at plane k, or the unobstructed source beyond the grid (light that is
-// not refracted: beams keep their cells, so their power is the light there).
-fn beam_cell_power(k: u32, c: vec2<i32>) -> vec3<f32> {
+// Power of beam cell c kept in region `region` of the power buffer (k % 2: on plane k;
+// `front_power_region(k)`: before its segment to plane k), or the unobstructed source beyond
+// the grid (light that is not refracted: beams keep their cells, so their power is the light
+// there).
+fn beam_cell_power(region: u32, c: vec2<i32>) -> vec3<f32> {
     if (c.x < 0 || c.y < 0 || c.x >= i32(P.beam_grid.x) || c.y >= i32(P.beam_grid.y)) {
         return vec3<f32>(1.0);
     }
-    return load_beam_power((k % 2u) * beam_count() + u32(c.y) * P.beam_grid.x + u32(c.x)).rgb;
+    return load_beam_power(region * beam_count() + u32(c.y) * P.beam_grid.x + u32(c.x)).rgb;
 }
 
-// Without refraction: the light the beams carry unscattered at p on plane k, a bilinear
-// lookup of their cells' power (beams keep their cells).
-fn beams_unscattered_at(k: u32, p: vec3<f32>) -> vec3<f32> {
+// Without refraction: a bilinear lookup at p of the beams' cells' power in `region`.
+fn beam_cells_at(region: u32, p: vec3<f32>) -> vec3<f32> {
     let g = grid_coords(p);
     let lo = floor(g);
     let f = g - lo;
     let a = vec2<i32>(lo);
-    return mix(mix(beam_cell_power(k, a), beam_cell_power(k, a + vec2<i32>(1, 0)), f.x),
-               mix(beam_cell_power(k, a + vec2<i32>(0, 1)), beam_cell_power(k, a + vec2<i32>(1, 1)), f.x), f.y);
+    return mix(mix(beam_cell_power(region, a), beam_cell_power(region, a + vec2<i32>(1, 0)), f.x),
+               mix(beam_cell_power(region, a + vec2<i32>(0, 1)), beam_cell_power(region, a + vec2<i32>(1, 1)), f.x), f.y);
+}
+
+// Without refraction: the light the beams carry unscattered at p on plane k.
+fn beams_unscattered_at(k: u32, p: vec3<f32>) -> vec3<f32> {
+    return beam_cells_at(k % 2u, p);
 }
 
 // Without refraction, the power each beam had on plane k-1 (before its segment to plane k) is
 // kept beside its power on plane k, for `beams_unscattered_through`.
-fn front_power_index(k: u32, index: u32) -> u32 {
-    return (2u + k % 2u) * beam_count() + index;
+fn front_power_region(k: u32) -> u32 {
+    return 2u + k % 2u;
 }
 
-fn beam_cell_front_power(k: u32, c: vec2<i32>) -> vec3<f32> {
-    if (c.x < 0 || c.y < 0 || c.x >= i32(P.beam_grid.x) || c.y >= i32(P.beam_grid.y)) {
-        return vec3<f32>(1.0);
-    }
-    return load_beam_power(front_power_index(k, u32(c.y) * P.beam_grid.x + u32(c.x))).rgb;
+// The transmittance of the light's last segment to p (value: the data value there): from the
+// plane before along the source's direction, with the segment function the beams use.
+fn last_segment_transmittance(p: vec3<f32>, value: f32) -> vec3<f32> {
+    let back = p - P.light_dir.xyz * (P.plane.y / P.light_dir.z);
+    let mid = 0.5 * (back + p);
+    return segment_transmittance(sample_value(back), sample_value(mid), value, 1.0 / P.light_dir.z, is_clipped(mid));
 }
 
 // Without refraction: the light arriving at p on plane k (value: the data value there), with
@@ -561,16 +568,7 @@ fn beam_cell_front_power(k: u32, c: vec2<i32>) -> vec3<f32> {
 // opaque slab is as bright as the Lommel–Seeliger law says within 13% (46% too bright before),
 // though rows whose line still passes between beams across the surface stay (tests/steps.rs).
 fn beams_unscattered_through(k: u32, p: vec3<f32>, value: f32) -> vec3<f32> {
-    let g = grid_coords(p);
-    let lo = floor(g);
-    let f = g - lo;
-    let a = vec2<i32>(lo);
-    let front = mix(mix(beam_cell_front_power(k, a), beam_cell_front_power(k, a + vec2<i32>(1, 0)), f.x),
-                    mix(beam_cell_front_power(k, a + vec2<i32>(0, 1)), beam_cell_front_power(k, a + vec2<i32>(1, 1)), f.x), f.y);
-    let ds = P.plane.y;
-    let back = p - P.light_dir.xyz * (ds / P.light_dir.z);
-    let mid = 0.5 * (back + p);
-    return front * segment_transmittance(sample_value(back), sample_value(mid), value, 1.0 / P.light_dir.z, is_clipped(mid));
+    return beam_cells_at(front_power_region(k), p) * last_segment_transmittance(p, value);
 }
 
 // Whether the beams deposit their power from before the segment that ends on the plane (the
@@ -587,11 +585,7 @@ fn deposits_front_power() -> bool {
 // outside refracting media (inside them, where it is not, the transmittance is near 1 unless
 // the medium is also opaque).
 fn beams_light_through(k: u32, p: vec3<f32>, value: f32) -> vec3<f32> {
-    let ds = P.plane.y;
-    let back = p - P.light_dir.xyz * (ds / P.light_dir.z);
-    let mid = 0.5 * (back + p);
-    let t = segment_transmittance(sample_value(back), sample_value(mid), value, 1.0 / P.light_dir.z, is_clipped(mid));
-    return beams_light_at(k, p).color * t;
+    return beams_light_at(k, p).color * last_segment_transmittance(p, value);
 }
 
 // Light arriving at the view-space point p on plane k (fluence relative to the source, and
