@@ -171,18 +171,9 @@ pub fn accumulate(sum: &mut Option<(RenderedImage, u32)>, job: Job, image: Rende
     }
     match sum {
         Some((s, n)) if job.pass > 0 && (s.width, s.height) == (image.width, image.height) => {
-            for (a, p) in s.pixels.iter_mut().zip(&image.pixels) {
-                for c in 0..4 {
-                    a[c] += p[c];
-                }
-            }
+            s.add(&image);
             *n += 1;
-            let scale = 1.0 / *n as f32;
-            RenderedImage {
-                width: s.width,
-                height: s.height,
-                pixels: s.pixels.iter().map(|p| p.map(|v| v * scale)).collect(),
-            }
+            s.scaled(1.0 / *n as f32)
         }
         _ => {
             *sum = Some((image.clone(), 1));

@@ -48,11 +48,7 @@ pub fn accumulate(
         sum = Some(match sum {
             None => out,
             Some(mut acc) => {
-                for (a, p) in acc.image.pixels.iter_mut().zip(&out.image.pixels) {
-                    for c in 0..4 {
-                        a[c] += p[c];
-                    }
-                }
+                acc.image.add(&out.image);
                 acc.stats = out.stats;
                 acc
             }
@@ -60,12 +56,7 @@ pub fn accumulate(
         progress(j + 1);
     }
     let mut out = sum.expect("at least one render");
-    let scale = 1.0 / n as f32;
-    for p in &mut out.image.pixels {
-        for c in p.iter_mut() {
-            *c *= scale;
-        }
-    }
+    out.image = out.image.scaled(1.0 / n as f32);
     out.stats.gpu_ms = gpu_ms;
     Ok(out)
 }

@@ -34,6 +34,24 @@ pub fn linear_to_srgb(c: f32) -> f32 {
 }
 
 impl RenderedImage {
+    /// Adds `other` (the same size) pixel by pixel.
+    pub fn add(&mut self, other: &RenderedImage) {
+        for (a, p) in self.pixels.iter_mut().zip(&other.pixels) {
+            for c in 0..4 {
+                a[c] += p[c];
+            }
+        }
+    }
+
+    /// The image with every channel multiplied by `s`.
+    pub fn scaled(&self, s: f32) -> RenderedImage {
+        RenderedImage {
+            width: self.width,
+            height: self.height,
+            pixels: self.pixels.iter().map(|p| p.map(|v| v * s)).collect(),
+        }
+    }
+
     /// 8-bit sRGB bytes (RGBA), values above 1 clipped.
     pub fn to_srgb8(&self) -> Vec<u8> {
         self.pixels
