@@ -105,6 +105,16 @@ pub struct ViewSetup {
     pub height: u32,
 }
 
+/// At most [`MAX_PLANES`] planes per sweep.
+fn check_planes(planes: u64) -> Result<(), String> {
+    if planes > MAX_PLANES as u64 {
+        return Err(format!(
+            "{planes} planes needed (more than {MAX_PLANES}); increase quality.sample_distance"
+        ));
+    }
+    Ok(())
+}
+
 pub fn camera_position(camera: &Camera, radius: f32) -> (Vec3, Vec3) {
     let target = Vec3::from(camera.target) * radius;
     let (_, _, forward) = camera.basis();
@@ -146,11 +156,7 @@ impl ViewSetup {
             return Err("the volume is behind the camera".into());
         }
         let planes = ((z_max - z_min) / step).ceil() as u64 + 1;
-        if planes > MAX_PLANES as u64 {
-            return Err(format!(
-                "{planes} planes needed (more than {MAX_PLANES}); increase quality.sample_distance"
-            ));
-        }
+        check_planes(planes)?;
         let (w, h) = (width as f32, height as f32);
         let f = if perspective {
             (h * 0.5) / (scene.camera.fov_deg.to_radians() * 0.5).tan()
@@ -298,12 +304,7 @@ impl ViewSetup {
         if f == 0.0 || (self.perspective && earlier < NEAR_PLANE * self.radius) {
             return Ok(());
         }
-        if self.planes >= MAX_PLANES {
-            return Err(format!(
-                "{} planes needed (more than {MAX_PLANES}); increase quality.sample_distance",
-                self.planes + 1
-            ));
-        }
+        check_planes(self.planes as u64 + 1)?;
         self.z_first = earlier;
         self.planes += 1;
         Ok(())
