@@ -27,21 +27,25 @@ fn slab(sigma: f32, tilt_deg: f32) -> caustica::volume::Volume {
     })
 }
 
-/// Renders the slab, opaque (τ = 16 per voxel) above value 0.9: only the top of the profile,
-/// a core 2σ·sqrt(2 ln(1/0.9)) ≈ 0.92σ voxels thick, whose peak a sample at Δs = 1 misses by
-/// up to half a step. White, lit from the camera, at plane distance `ds`.
-fn render_slab(gpu: &mut Gpu, sigma: f32, tilt_deg: f32, ds: f32) -> RenderedImage {
+/// The slab, opaque (τ = 16 per voxel) above value 0.9: only the top of the profile, a core
+/// 2σ·sqrt(2 ln(1/0.9)) ≈ 0.92σ voxels thick, whose peak a sample at Δs = 1 misses by up to
+/// half a step. White, at plane distance `ds`, lit from the camera (`head_on_scene`).
+fn slab_scene(sigma: f32, tilt_deg: f32, ds: f32) -> caustica::render::PreparedScene {
     let tf = plain_tf(vec![[0.0, 0.0], [0.85, 0.0], [0.95, 1.0]], vec![[0.0, 1.0, 1.0, 1.0]]);
-    // head_on_scene's light comes from the camera. Light from the side makes the slab uneven
-    // at every Δs (the light grid cannot resolve a surface this sharp: docs/accuracy.md), which
-    // is not what this test is about.
     let mut scene = head_on_scene(&tf);
     scene.quality = Quality {
         sample_distance: ds,
         ..Quality::default()
     };
-    let p = prepared(scene, slab(sigma, tilt_deg), tf);
-    gpu.render(&p, &RenderRequest::new(SIZE, SIZE)).image
+    prepared(scene, slab(sigma, tilt_deg), tf)
+}
+
+/// The slab lit from the camera. Light from the side makes it uneven at every Δs (the beams
+/// cannot resolve a surface this sharp: `a_side_lit_opaque_slab_…` below), which is not what
+/// the evenness checks are about.
+fn render_slab(gpu: &mut Gpu, sigma: f32, tilt_deg: f32, ds: f32) -> RenderedImage {
+    gpu.render(&slab_scene(sigma, tilt_deg, ds), &RenderRequest::new(SIZE, SIZE))
+        .image
 }
 
 /// Row means of luminance over the central 3/8 of the image in x and y (the volume covers
@@ -93,7 +97,7 @@ fn thin_tilted_slab_is_evenly_bright_and_converged_at_the_default_step() {
     eprintln!("{report:#?}");
 }
 
-/// The slab of [`render_slab`] lit from 30° off the view axis at `azimuth` (0: tilted in the
+/// The slab of [`slab_scene`] lit from 30° off the view axis at `azimuth` (0: tilted in the
 /// plane of the slab's normal, 90: across it), averaged over `renders` jittered sweeps
 /// ([`caustica::render::accumulate`]).
 fn render_side_lit_slab(
@@ -104,18 +108,12 @@ fn render_side_lit_slab(
     renders: u32,
     azimuth: f32,
 ) -> RenderedImage {
-    let tf = plain_tf(vec![[0.0, 0.0], [0.85, 0.0], [0.95, 1.0]], vec![[0.0, 1.0, 1.0, 1.0]]);
-    let mut scene = head_on_scene(&tf);
-    scene.quality = Quality {
-        sample_distance: ds,
-        ..Quality::default()
-    };
-    scene.light = Light {
+    let mut p = slab_scene(sigma, tilt_deg, ds);
+    p.scene.light = Light {
         polar_deg: 30.0,
         azimuth_deg: azimuth,
-        ..scene.light
+        ..p.scene.light
     };
-    let p = prepared(scene, slab(sigma, tilt_deg), tf);
     let out = caustica::render::accumulate(&mut gpu.renderer, &p, &RenderRequest::new(SIZE, SIZE), renders, |_| {})
         .expect("render succeeds");
     gpu.assert_clean();
