@@ -90,6 +90,39 @@ pub struct Scene {
 }
 
 impl Scene {
+    /// An orthographic head-on view at `zoom` (it spans 2·(bounding radius)/zoom vertically)
+    /// of a volume given apart from the scene (`name` labels it), hard white light along the
+    /// view axis, a black background: the scenes of the benches' and tests' exact checks.
+    pub fn head_on(name: &str, tf: &TransferFunctions, zoom: f32, quality: Quality) -> Scene {
+        Scene {
+            volume: VolumeSource::Builtin {
+                name: name.into(),
+                resolution: 0,
+            },
+            eta_volume: None,
+            window: Some([0.0, 1.0]),
+            transfer: TransferSource::Inline(tf.clone()),
+            camera: Camera {
+                yaw_deg: 0.0,
+                pitch_deg: 0.0,
+                projection: Projection::Orthographic,
+                zoom,
+                ..Camera::default()
+            },
+            light: Light {
+                polar_deg: 0.0,
+                azimuth_deg: 0.0,
+                color: [1.0; 3],
+                intensity: 1.0,
+                softness: 0.0,
+            },
+            shading: Shading::default(),
+            clip: None,
+            environment: Environment::Color { color: [0.0; 3] },
+            quality,
+        }
+    }
+
     /// Reads a TOML scene; relative paths are taken relative to the scene file.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
         let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {

@@ -23,7 +23,7 @@ use crate::reference::graded_ball::GradedBall;
 use crate::reference::measure::{self, Region, ScalarImage};
 use crate::reference::plane_light::{self, nearest_sweep_plane, PlaneSettings};
 use crate::render::{DebugView, PreparedScene, RenderRequest, Renderer, ViewSetup};
-use crate::scene::{Camera, Environment, Light, Projection, Quality, Scene, Shading, TransferSource, VolumeSource};
+use crate::scene::{Quality, Scene};
 use crate::transfer::{ColorRamp, Curve, TransferFunctions};
 use crate::volume::{Volume, VolumeError};
 
@@ -168,40 +168,7 @@ pub fn ball_scene(volume: &Volume, tf: &TransferFunctions, radius: f64) -> Scene
     let extent = Vec3::new(volume.dims[0] as f32, volume.dims[1] as f32, volume.dims[2] as f32);
     // The view spans 2·(bounding radius)/zoom vertically.
     let zoom = extent.length() / (4.0 * radius as f32);
-    head_on_scene("ball lens (light bench)", tf, zoom, Quality::default())
-}
-
-/// Orthographic and head-on at `zoom` (the view spans 2·(bounding radius)/zoom vertically),
-/// hard white light along the view axis, black background: the scenes of the light and
-/// scattering benches.
-pub(crate) fn head_on_scene(name: &str, tf: &TransferFunctions, zoom: f32, quality: Quality) -> Scene {
-    Scene {
-        volume: VolumeSource::Builtin {
-            name: name.into(),
-            resolution: 0,
-        },
-        eta_volume: None,
-        window: Some([0.0, 1.0]),
-        transfer: TransferSource::Inline(tf.clone()),
-        camera: Camera {
-            yaw_deg: 0.0,
-            pitch_deg: 0.0,
-            projection: Projection::Orthographic,
-            zoom,
-            ..Camera::default()
-        },
-        light: Light {
-            polar_deg: 0.0,
-            azimuth_deg: 0.0,
-            color: [1.0; 3],
-            intensity: 1.0,
-            softness: 0.0,
-        },
-        shading: Shading::default(),
-        clip: None,
-        environment: Environment::Color { color: [0.0; 3] },
-        quality,
-    }
+    Scene::head_on("ball lens (light bench)", tf, zoom, Quality::default())
 }
 
 /// One measured plane.

@@ -86,7 +86,7 @@ pub fn slab_volume(hole: Option<f32>) -> Result<Volume, VolumeError> {
 /// the volume's side (one pixel per voxel at N²).
 pub fn slab_scene(tf: &TransferFunctions, quality: Quality) -> Scene {
     // The view spans 2·(bounding radius)/zoom: the cube's diagonal √3 N over √3.
-    super::light::head_on_scene("scattering slab", tf, 3f32.sqrt(), quality)
+    Scene::head_on("scattering slab", tf, 3f32.sqrt(), quality)
 }
 
 /// A sweep plane near a wanted depth.

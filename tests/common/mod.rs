@@ -5,7 +5,7 @@ use std::sync::Arc;
 
 use caustica::gpu::{Context, ContextDesc, DeviceSelector};
 use caustica::render::{DebugView, PreparedScene, RenderOutput, RenderRequest, Renderer};
-use caustica::scene::{Camera, Environment, Light, Projection, Quality, Scene, Shading, TransferSource, VolumeSource};
+use caustica::scene::{Quality, Scene};
 use caustica::transfer::{ColorRamp, Curve, TransferFunctions};
 use caustica::volume::Volume;
 
@@ -70,33 +70,7 @@ pub fn plain_tf(opacity: Vec<[f32; 2]>, color: Vec<[f32; 4]>) -> TransferFunctio
 
 /// An orthographic head-on view with the light along the view axis and a black background.
 pub fn head_on_scene(tf: &TransferFunctions) -> Scene {
-    Scene {
-        volume: VolumeSource::Builtin {
-            name: "test".into(),
-            resolution: 0,
-        },
-        eta_volume: None,
-        window: Some([0.0, 1.0]),
-        transfer: TransferSource::Inline(tf.clone()),
-        camera: Camera {
-            yaw_deg: 0.0,
-            pitch_deg: 0.0,
-            projection: Projection::Orthographic,
-            zoom: 1.0,
-            ..Camera::default()
-        },
-        light: Light {
-            polar_deg: 0.0,
-            azimuth_deg: 0.0,
-            color: [1.0; 3],
-            intensity: 1.0,
-            softness: 0.0,
-        },
-        shading: Shading::default(),
-        clip: None,
-        environment: Environment::Color { color: [0.0; 3] },
-        quality: Quality::default(),
-    }
+    Scene::head_on("test", tf, 1.0, Quality::default())
 }
 
 /// A volume of `n`³ voxels from a function of the voxel centre in [0, 1]³.
