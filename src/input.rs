@@ -195,8 +195,8 @@ impl InputArgs {
         if let Some(p) = self.precision {
             scene.quality.precision = p;
         }
-        if let (Some(r), VolumeSource::Builtin { resolution, .. }) = (self.resolution, &mut scene.volume) {
-            *resolution = r;
+        if let Some(r) = self.resolution {
+            scene.set_builtin_resolution(r);
         }
         scene.validate()?;
         Ok(scene)

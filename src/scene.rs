@@ -90,15 +90,27 @@ pub struct Scene {
 }
 
 impl Scene {
+    /// Whether η comes from a volume of its own: the scene's `eta_volume`, or the objects of
+    /// a built-in volume without their supports ([`VolumeSource::builtin_objects`]).
+    pub fn has_eta_volume(&self) -> bool {
+        self.eta_volume.is_some() || self.volume.has_builtin_objects()
+    }
+
+    /// Sets the resolution of the scene's built-in volumes (the volume and a built-in η
+    /// volume alike, so that they stay on one grid).
+    pub fn set_builtin_resolution(&mut self, n: usize) {
+        self.volume.set_resolution(n);
+        if let Some(eta) = &mut self.eta_volume {
+            eta.set_resolution(n);
+        }
+    }
+
     /// An orthographic head-on view at `zoom` (it spans 2·(bounding radius)/zoom vertically)
     /// of a volume given apart from the scene (`name` labels it), hard white light along the
     /// view axis, a black background: the scenes of the benches' and tests' exact checks.
     pub fn head_on(name: &str, tf: &TransferFunctions, zoom: f32, quality: Quality) -> Scene {
         Scene {
-            volume: VolumeSource::Builtin {
-                name: name.into(),
-                resolution: 0,
-            },
+            volume: VolumeSource::builtin(name, 0),
             eta_volume: None,
             window: Some([0.0, 1.0]),
             transfer: TransferSource::Inline(tf.clone()),

@@ -146,10 +146,7 @@ fn a_separate_volume_can_be_the_source_of_eta() {
         points: vec![[0.0, 1.0], [0.5, ETA]],
     };
     let mut scene = head_on_scene(&tf);
-    scene.eta_volume = Some(caustica::scene::VolumeSource::Builtin {
-        name: "test".into(),
-        resolution: 0,
-    });
+    scene.eta_volume = Some(caustica::scene::VolumeSource::builtin("test", 0));
     // Window [0, 1] for the main volume; the η volume is mapped through its own value range,
     // so give it values spanning [0, 1] with the ball at 0.5 and one voxel at 1.
     let mut eta_volume = sphere(N, RADIUS, 0.5);

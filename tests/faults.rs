@@ -9,7 +9,7 @@ use std::sync::Arc;
 
 use caustica::gpu::{Buffer, Context, ContextDesc, DeviceSelector, Faults, GpuError};
 use caustica::render::{PreparedScene, RenderError, RenderRequest, Renderer};
-use caustica::scene::{builtin, Precision, VolumeSource};
+use caustica::scene::{builtin, Precision};
 
 const SIZE: u32 = 24;
 
@@ -26,9 +26,7 @@ fn context(faults: &str) -> Arc<Context> {
 
 fn ball(precision: Precision) -> PreparedScene {
     let mut scene = builtin("ball-lens").unwrap().scene;
-    if let VolumeSource::Builtin { resolution, .. } = &mut scene.volume {
-        *resolution = 24;
-    }
+    scene.set_builtin_resolution(24);
     scene.quality.precision = precision;
     PreparedScene::load(&scene).unwrap()
 }

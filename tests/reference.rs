@@ -198,10 +198,7 @@ fn the_reference_renders_the_optics_the_gpu_renders() {
                     scene.quality.refraction = refraction;
                     scene.quality.specular = specular;
                     scene.shading.specular = strength;
-                    scene.eta_volume = eta_volume.then(|| VolumeSource::Builtin {
-                        name: "test".into(),
-                        resolution: 0,
-                    });
+                    scene.eta_volume = eta_volume.then(|| VolumeSource::builtin("test", 0));
                     let f = Features::for_scene(&scene, t);
                     let o = SceneOptics::of(&scene, t);
                     assert_eq!(

@@ -155,9 +155,7 @@ fn spread_at_zero_albedo_renders_todays_image() {
     // bytes, although it runs its own variant.
     let mut gpu = Gpu::new();
     let mut scene = caustica::scene::builtin("supernova").unwrap().scene;
-    if let caustica::scene::VolumeSource::Builtin { resolution, .. } = &mut scene.volume {
-        *resolution = 32;
-    }
+    scene.set_builtin_resolution(32);
     scene.quality.refraction = caustica::scene::Toggle::Off;
     scene.quality.multiple_scattering = MultipleScattering::None;
     let none = PreparedScene::load(&scene).unwrap();
@@ -216,9 +214,7 @@ fn auto_spreads_when_the_transfer_functions_scatter_and_spread_refuses_refractio
 fn the_milk_glass_scene_spreads_its_scattered_light_into_its_shadow() {
     let mut gpu = Gpu::new();
     let mut scene = caustica::scene::builtin("milk-glass").unwrap().scene;
-    if let caustica::scene::VolumeSource::Builtin { resolution, .. } = &mut scene.volume {
-        *resolution = 48;
-    }
+    scene.set_builtin_resolution(48);
     let spread = PreparedScene::load(&scene).unwrap();
     assert!(
         spread.features().scatter,

@@ -3,7 +3,7 @@
 mod common;
 
 use caustica::render::{PreparedScene, RenderRequest};
-use caustica::scene::{builtin, VolumeSource, BUILTIN_SCENES};
+use caustica::scene::{builtin, BUILTIN_SCENES};
 use common::*;
 
 #[test]
@@ -12,9 +12,7 @@ fn builtin_scenes_render_finite_non_blank_and_deterministic() {
     for name in BUILTIN_SCENES {
         let mut scene = builtin(name).unwrap().scene;
         // Small volume and viewport: lavapipe runs every plane on the CPU.
-        if let VolumeSource::Builtin { resolution, .. } = &mut scene.volume {
-            *resolution = 32;
-        }
+        scene.set_builtin_resolution(32);
         let p = PreparedScene::load(&scene).unwrap();
         let req = RenderRequest::new(48, 48);
         let a = gpu.render(&p, &req);
@@ -113,9 +111,7 @@ fn scattering_curves_at_zero_render_todays_image_with_todays_work() {
     // features (no extra pass, buffer or variant) and the same bytes as without the curves.
     let mut gpu = Gpu::new();
     let mut scene = builtin("supernova").unwrap().scene;
-    if let VolumeSource::Builtin { resolution, .. } = &mut scene.volume {
-        *resolution = 32;
-    }
+    scene.set_builtin_resolution(32);
     let plain = PreparedScene::load(&scene).unwrap();
     let mut tf = plain.tf.clone();
     assert!(tf.albedo.is_none() && tf.anisotropy.is_none());

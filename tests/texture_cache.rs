@@ -15,10 +15,7 @@ type Edit = Box<dyn Fn(&mut PreparedScene)>;
 
 fn prepared() -> PreparedScene {
     let mut scene = builtin("ball-lens").unwrap().scene;
-    scene.volume = VolumeSource::Builtin {
-        name: "ball-lens".into(),
-        resolution: 32,
-    };
+    scene.volume = VolumeSource::builtin("ball-lens", 32);
     PreparedScene::load(&scene).unwrap()
 }
 

@@ -257,10 +257,7 @@ mod tests {
 
     fn small_scene() -> Scene {
         let mut scene = builtin("ball-lens").unwrap().scene;
-        scene.volume = VolumeSource::Builtin {
-            name: "ball-lens".into(),
-            resolution: 32,
-        };
+        scene.volume = VolumeSource::builtin("ball-lens", 32);
         scene
     }
 

@@ -25,7 +25,7 @@ use crate::gpu::Context;
 use crate::reference::photons::PhotonSettings;
 use crate::reference::{self, ReferenceError, ReferenceSettings};
 use crate::render::{PreparedScene, RenderError, RenderRequest, Renderer};
-use crate::scene::{builtin, Gradient, Precision, PrepareError, SceneError, VolumeSource};
+use crate::scene::{builtin, Gradient, Precision, PrepareError, SceneError};
 
 pub use metrics::{compare, ImageError, Linear};
 pub use report::{write_csv, write_markdown};
@@ -195,9 +195,7 @@ pub struct Report {
 /// A built-in scene prepared for the bench: at `resolution`, with its highlights or without.
 pub fn bench_scene(name: &str, resolution: usize, highlights: bool) -> Result<PreparedScene, BenchError> {
     let mut scene = builtin(name)?.scene;
-    if let VolumeSource::Builtin { resolution: r, .. } = &mut scene.volume {
-        *r = resolution;
-    }
+    scene.set_builtin_resolution(resolution);
     scene.quality.specular &= highlights;
     Ok(PreparedScene::load(&scene)?)
 }

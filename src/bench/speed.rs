@@ -10,7 +10,7 @@ use std::time::Instant;
 
 use crate::gpu::{Context, MemoryUse};
 use crate::render::{PreparedScene, RenderRequest, Renderer};
-use crate::scene::{builtin, Scene, VolumeSource};
+use crate::scene::{builtin, Scene};
 
 use super::{median, write_err, BenchError};
 
@@ -25,8 +25,8 @@ impl SpeedScene {
     /// A built-in scene, at `resolution` voxels along its longest axis when given.
     pub fn builtin(name: &str, resolution: Option<usize>) -> Result<SpeedScene, BenchError> {
         let mut scene = builtin(name)?.scene;
-        if let (VolumeSource::Builtin { resolution: r, .. }, Some(n)) = (&mut scene.volume, resolution) {
-            *r = n;
+        if let Some(n) = resolution {
+            scene.set_builtin_resolution(n);
         }
         Ok(SpeedScene {
             name: name.to_string(),

@@ -12,7 +12,7 @@ use caustica::animate::{
 use caustica::gpu::{Context, ContextDesc, DeviceSelector};
 use caustica::input::{fit_to_device, parse_size, InputArgs, Prepared};
 use caustica::render::Renderer;
-use caustica::scene::{ClipPlane, PreparedScene, VolumeSource};
+use caustica::scene::{ClipPlane, PreparedScene};
 
 /// Values of a track given on the command line: `A,B[,C...]`, spread evenly over the animation.
 #[derive(Clone, Debug, PartialEq)]
@@ -183,8 +183,8 @@ impl AnimateArgs {
         if let Some(p) = self.input.precision {
             q.precision = p;
         }
-        if let (Some(r), VolumeSource::Builtin { resolution, .. }) = (self.input.resolution, &mut a.scene.volume) {
-            *resolution = r;
+        if let Some(r) = self.input.resolution {
+            a.scene.set_builtin_resolution(r);
         }
         a.validate()?;
         Ok(a)

@@ -89,12 +89,13 @@ impl SceneOptics {
         let refraction = match q.refraction {
             Toggle::On => true,
             Toggle::Off => false,
-            Toggle::Auto => !tf.eta_is_constant() || scene.eta_volume.is_some(),
+            // An η volume goes through η_tf too: a constant η_tf refracts nothing either way.
+            Toggle::Auto => !tf.eta_is_constant(),
         };
         SceneOptics {
             refraction,
             specular: refraction && q.specular && scene.shading.specular > 0.0,
-            eta_volume: refraction && scene.eta_volume.is_some(),
+            eta_volume: refraction && scene.has_eta_volume(),
         }
     }
 }

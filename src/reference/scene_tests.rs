@@ -22,10 +22,7 @@ use crate::volume::Volume;
 /// axis from behind the viewer, hard; a constant background.
 fn scene(tf: &TransferFunctions, background: [f32; 3]) -> Scene {
     Scene {
-        volume: VolumeSource::Builtin {
-            name: "test".into(),
-            resolution: 0,
-        },
+        volume: VolumeSource::builtin("test", 0),
         eta_volume: None,
         window: Some([0.0, 1.0]),
         transfer: TransferSource::Inline(tf.clone()),
@@ -208,10 +205,7 @@ fn a_separate_eta_volume_refracts_as_the_same_eta_in_the_volume() {
     base.quality.specular = false;
     let in_volume = prepared(base.clone(), ball.clone(), t.clone());
     let mut with_eta = base.clone();
-    with_eta.eta_volume = Some(VolumeSource::Builtin {
-        name: "test".into(),
-        resolution: 0,
-    });
+    with_eta.eta_volume = Some(VolumeSource::builtin("test", 0));
     let mut separate = prepared(with_eta.clone(), empty.clone(), t.clone());
     separate.eta_volume = Some(Arc::new(ball.clone()));
     let none = prepared(base, empty.clone(), t.clone());

@@ -67,7 +67,8 @@ impl Features {
         let refraction = match q.refraction {
             Toggle::On => true,
             Toggle::Off => false,
-            Toggle::Auto => !tf.eta_is_constant() || scene.eta_volume.is_some(),
+            // An η volume goes through η_tf too: a constant η_tf refracts nothing either way.
+            Toggle::Auto => !tf.eta_is_constant(),
         };
         Features {
             refraction,
@@ -76,7 +77,7 @@ impl Features {
             intensity_correction: refraction && q.intensity_correction && q.light_transport == LightTransport::Backward,
             specular: refraction && q.specular && scene.shading.specular > 0.0,
             clip: scene.clip.is_some(),
-            eta_volume: refraction && scene.eta_volume.is_some(),
+            eta_volume: refraction && scene.has_eta_volume(),
             orthographic: scene.camera.projection == Projection::Orthographic,
             // Without refraction no gradient is computed: one variant is enough.
             gradient: if refraction { q.gradient } else { Gradient::Central },

@@ -75,6 +75,43 @@ mod tests {
     use super::*;
 
     #[test]
+    fn built_in_grounds_and_walls_do_not_refract() {
+        use crate::scene::{builtin, PreparedScene};
+        for name in ["ball-lens", "glass-beer", "luneburg"] {
+            let mut scene = builtin(name).unwrap().scene;
+            scene.set_builtin_resolution(32);
+            assert!(scene.has_eta_volume(), "{name}");
+            let prepared = PreparedScene::load(&scene).unwrap();
+            let tf = &prepared.tf;
+            let eta = prepared.eta_volume.as_ref().expect("the objects as the η source");
+            assert_eq!(eta.dims, prepared.volume.dims);
+            let window = prepared.window();
+            let of = |v: &crate::volume::Volume, w: [f32; 2]| {
+                gradient_volume(&v.normalized_u16(w), v.dims, &tf.eta, Gradient::Central)
+            };
+            let from_objects = of(eta, eta.value_range);
+            let from_volume = of(&prepared.volume, window);
+            // Voxels of the ground's top surface, blended from air to ground, far from the
+            // objects (a corner column): their values pass through the glass's, so η taken
+            // from the whole volume reaches the glass's there (a refractive film on the
+            // ground); from the objects alone it is the air's.
+            let [nx, ny, _] = prepared.volume.dims;
+            let corner = |y: usize| y * nx + 1;
+            let film = (0..ny / 2)
+                .map(|y| from_volume[corner(y)][3].to_f32().abs())
+                .fold(0.0f32, f32::max);
+            assert!(
+                film > 0.1,
+                "{name}: no film to remove ({film}); the check would pass anyway"
+            );
+            let left = (0..ny / 2)
+                .map(|y| from_objects[corner(y)][3].to_f32().abs())
+                .fold(0.0f32, f32::max);
+            assert_eq!(left, 0.0, "{name}: η − η_air {left} on the ground");
+        }
+    }
+
+    #[test]
     fn a_linear_index_ramp_has_a_constant_gradient_and_the_faces_are_interfaces() {
         // η = 1 + v over a volume whose value grows by 1/7 per voxel along x.
         let eta = Curve {

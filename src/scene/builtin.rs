@@ -115,10 +115,7 @@ pub fn builtin(name: &str) -> Result<BuiltinScene, SceneError> {
         name,
         description,
         scene: Scene {
-            volume: VolumeSource::Builtin {
-                name: generator.to_string(),
-                resolution: 128,
-            },
+            volume: VolumeSource::builtin(generator, 128),
             eta_volume: None,
             window: Some([0.0, 1.0]),
             transfer: TransferSource::Inline(tf),

@@ -85,7 +85,7 @@ impl PreparedScene {
                 };
                 Some(Arc::new(v))
             }
-            None => None,
+            None => scene.volume.builtin_objects()?.map(Arc::new),
         };
         Ok(PreparedScene {
             tf: scene.transfer_functions()?,

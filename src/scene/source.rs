@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use crate::transfer::TransferFunctions;
+use crate::volume::procedural::Part;
 use crate::volume::series::Series;
 use crate::volume::{self, raw::RawDesc, Format, Loaded, Volume, VolumeError, VolumeMeta};
 
@@ -46,6 +47,39 @@ fn default_resolution() -> usize {
 }
 
 impl VolumeSource {
+    /// The whole built-in volume `name` at `resolution`.
+    pub fn builtin(name: &str, resolution: usize) -> VolumeSource {
+        VolumeSource::Builtin {
+            name: name.to_string(),
+            resolution,
+        }
+    }
+
+    /// Whether this is a built-in scene volume whose objects stand on supports (ground,
+    /// walls): its η then comes from the objects alone ([`VolumeSource::builtin_objects`]).
+    pub fn has_builtin_objects(&self) -> bool {
+        matches!(self, VolumeSource::Builtin { name, .. } if volume::procedural::SCENE_VOLUMES.contains(&name.as_str()))
+    }
+
+    /// The objects of a built-in scene volume without their ground and walls, on the same
+    /// grid and with the same values: the η source of built-in volumes, so that the supports'
+    /// surfaces, blended from air to ground, do not pass through the objects' η in a thin film.
+    pub fn builtin_objects(&self) -> Result<Option<Volume>, VolumeError> {
+        match self {
+            VolumeSource::Builtin { name, resolution } if self.has_builtin_objects() => {
+                volume::procedural::generate_part(name, *resolution, Part::Objects).map(Some)
+            }
+            _ => Ok(None),
+        }
+    }
+
+    /// Sets the resolution of a built-in volume (no effect on others).
+    pub fn set_resolution(&mut self, n: usize) {
+        if let VolumeSource::Builtin { resolution, .. } = self {
+            *resolution = n;
+        }
+    }
+
     pub fn load(&self) -> Result<Volume, VolumeError> {
         self.open().map(|loaded| loaded.volume)
     }

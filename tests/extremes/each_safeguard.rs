@@ -169,10 +169,7 @@ fn safeguard_view_min_z_stops_rays_that_turned_back() {
     // one column of rays straddle it (η 2.2 then 1.0 with no gradient left) and those rays
     // pass it unreflected, which is a sampling limit, not what this guard is about.
     scene.quality.sample_distance = 0.5;
-    scene.eta_volume = Some(caustica::scene::VolumeSource::Builtin {
-        name: "test".into(),
-        resolution: 0,
-    });
+    scene.eta_volume = Some(caustica::scene::VolumeSource::builtin("test", 0));
     let wall = volume_from(N, |_, _, z| if z > 0.85 { 1.0 } else { 0.0 });
     let mut p = prepared(scene, wall, tf);
     p.eta_volume = Some(std::sync::Arc::new(reflecting_interface(N)));

@@ -6,12 +6,37 @@ use glam::{Vec2, Vec3};
 use super::shapes::{build, coverage, fbm, sd_capsule, sd_ellipsoid, sd_sphere, sd_vertical_cylinder, smoothstep};
 use crate::volume::Volume;
 
+/// Which part of a scene a volume holds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Part {
+    /// Everything: the objects and what they stand on.
+    #[default]
+    Whole,
+    /// The objects only, without the ground and walls: the η source of the built-in scenes,
+    /// so that the supports' surfaces, blended from air to ground, do not pass through the
+    /// objects' values (a ground's edge voxels would otherwise take the glass's η in a film).
+    Objects,
+}
+
+impl Part {
+    fn support(self, value: f32) -> f32 {
+        match self {
+            Part::Whole => value,
+            Part::Objects => 0.0,
+        }
+    }
+}
+
 /// Smallest accepted resolution; below this the shapes fall apart into single voxels.
 pub const MIN_RESOLUTION: usize = 8;
 
 /// A glass ball lens floating above a ground slab.
 /// Dims `[n, 5n/8, n]`; ground 1.0, glass 0.5. `n` is raised to [`MIN_RESOLUTION`].
 pub fn ball_lens(n: usize) -> Volume {
+    ball_lens_part(n, Part::Whole)
+}
+
+pub(super) fn ball_lens_part(n: usize, part: Part) -> Volume {
     let n = n.max(MIN_RESOLUTION);
     let dims = [n, n * 5 / 8, n];
     let nf = n as f32;
@@ -19,7 +44,7 @@ pub fn ball_lens(n: usize) -> Volume {
     let radius = 0.16 * nf;
     let centre = Vec3::new(0.5 * nf, ground_top + 1.6 * radius, 0.5 * nf);
     build(dims, move |p| {
-        let ground = coverage(p.y - ground_top);
+        let ground = part.support(coverage(p.y - ground_top));
         let ball = 0.5 * coverage(sd_sphere(p, centre, radius));
         ground.max(ball)
     })
@@ -28,6 +53,10 @@ pub fn ball_lens(n: usize) -> Volume {
 /// A stemmed wine glass (0.4) partly filled with liquid (0.7) on the ground, in front of a
 /// back wall (both 1.0). Dims `[n, n, n]`. `n` is raised to [`MIN_RESOLUTION`].
 pub fn glass(n: usize) -> Volume {
+    glass_part(n, Part::Whole)
+}
+
+pub(super) fn glass_part(n: usize, part: Part) -> Volume {
     let n = n.max(MIN_RESOLUTION);
     let nf = n as f32;
     let axis = Vec2::splat(0.5 * nf);
@@ -53,8 +82,8 @@ pub fn glass(n: usize) -> Volume {
         let stem = sd_vertical_cylinder(p, axis, foot_top - 1.0, bowl_bottom + wall, stem_radius);
         let glass = shell.min(foot).min(stem);
         let liquid = (bowl + 0.5 * wall).max(p.y - liquid_top);
-        let ground = coverage(p.y - ground_top);
-        let wall_cover = coverage(back_wall - p.z);
+        let ground = part.support(coverage(p.y - ground_top));
+        let wall_cover = part.support(coverage(back_wall - p.z));
         ground
             .max(wall_cover)
             .max(0.4 * coverage(glass))
@@ -65,6 +94,10 @@ pub fn glass(n: usize) -> Volume {
 /// A layered, turbulent sphere: core 0.62..0.9, mid layer 0.55 ± 0.05, outer shell 0.3, over
 /// a ground slab of 1.0 (above every layer, so no layer edge passes through it). Dims `[n, n, n]`. `n` is raised to [`MIN_RESOLUTION`].
 pub fn supernova(n: usize) -> Volume {
+    supernova_part(n, Part::Whole)
+}
+
+pub(super) fn supernova_part(n: usize, part: Part) -> Volume {
     let n = n.max(MIN_RESOLUTION);
     let nf = n as f32;
     let centre = Vec3::new(0.5 * nf, 0.55 * nf, 0.5 * nf);
@@ -82,13 +115,17 @@ pub fn supernova(n: usize) -> Volume {
         let outer = coverage(r - outer_radius * (1.0 + 0.04 * turbulence));
         let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
         let layered = lerp(lerp(0.3 * outer, mid_value, mid), core_value, core);
-        layered.max(coverage(p.y - ground_top))
+        layered.max(part.support(coverage(p.y - ground_top)))
     })
 }
 
 /// A Luneburg-style graded sphere, 0.8 at the centre falling to 0 at the surface, above a
 /// ground slab (1.0). Dims `[n, 3n/4, n]`. `n` is raised to [`MIN_RESOLUTION`].
 pub fn luneburg(n: usize) -> Volume {
+    luneburg_part(n, Part::Whole)
+}
+
+pub(super) fn luneburg_part(n: usize, part: Part) -> Volume {
     let n = n.max(MIN_RESOLUTION);
     let nf = n as f32;
     let dims = [n, n * 3 / 4, n];
@@ -98,13 +135,17 @@ pub fn luneburg(n: usize) -> Volume {
     build(dims, move |p| {
         let r2 = (p - centre).length_squared() / (radius * radius);
         let lens = (0.8 * (1.0 - r2)).max(0.0);
-        lens.max(coverage(p.y - ground_top))
+        lens.max(part.support(coverage(p.y - ground_top)))
     })
 }
 
 /// A faint body (0.35) on six thin bent legs (0.6) standing on a checkered ground slab
 /// (0.9 / 1.0 squares of size n/8). Dims `[n, 3n/4, n]`. `n` is raised to [`MIN_RESOLUTION`].
 pub fn thin_structures(n: usize) -> Volume {
+    thin_structures_part(n, Part::Whole)
+}
+
+pub(super) fn thin_structures_part(n: usize, part: Part) -> Volume {
     let n = n.max(MIN_RESOLUTION);
     let nf = n as f32;
     let dims = [n, n * 3 / 4, n];
@@ -123,7 +164,7 @@ pub fn thin_structures(n: usize) -> Volume {
         // Smoothed XOR of the two square waves keeps the checker edges continuous too.
         let (cx, cz) = (square_wave(p.x, square), square_wave(p.z, square));
         let parity = cx + cz - 2.0 * cx * cz;
-        let ground = (0.9 + 0.1 * parity) * coverage(p.y - ground_top);
+        let ground = part.support((0.9 + 0.1 * parity) * coverage(p.y - ground_top));
         body.max(leg).max(ground)
     })
 }

@@ -133,3 +133,35 @@ fn smoothstep_edges() {
     assert_eq!(smoothstep(0.0, 1.0, 0.5), 0.5);
     assert_eq!(smoothstep(1.0, 0.0, 2.0), 0.0);
 }
+
+#[test]
+fn the_objects_part_is_the_scene_without_its_supports() {
+    for name in SCENE_VOLUMES {
+        let whole = generate(name, 32).expect("known scene");
+        let objects = generate_part(name, 32, Part::Objects).expect("known scene");
+        assert_eq!(objects.dims, whole.dims, "{name}");
+        // The values keep their meaning: the range is the transfer functions' domain.
+        assert_eq!(objects.value_range, [0.0, 1.0], "{name}");
+        // The bottom layer is ground in every scene; none of it is left.
+        let bottom = |v: &Volume| (0..whole.dims[0]).map(|x| v.get(x, 0, 2)).fold(0.0f32, f32::max);
+        assert!(bottom(&whole) > 0.85, "{name}: no ground in the whole scene");
+        assert!(
+            bottom(&objects) < 0.01,
+            "{name}: ground left in the objects ({})",
+            bottom(&objects)
+        );
+        // Elsewhere the objects are what the whole scene holds there (or less, where a
+        // support covered them).
+        assert!(whole.data.iter().zip(&objects.data).all(|(w, o)| o <= w), "{name}");
+        let kept = whole
+            .data
+            .iter()
+            .zip(&objects.data)
+            .filter(|(w, o)| **w > 0.0 && (*w - *o).abs() < 1e-6)
+            .count();
+        assert!(kept > 0, "{name}: no object voxel kept");
+    }
+    // The glass's back wall is a support too.
+    let objects = generate_part("glass", 64, Part::Objects).unwrap();
+    assert_eq!(objects.get(2, 40, 63), 0.0);
+}
