@@ -53,28 +53,44 @@ fn view_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_ind
     }
 }
 
-// Per rect tile, one workgroup: the pixels clear the light slot the next plane deposits into,
-// and the first invocation lists the tile for plane k+1 if it needs it: a ray alive whose
-// next segment (or the one after, so that a ray is stepped onto the plane before it has
-// something to composite) meets a visible brick. Refracted rays can be anywhere: they only
-// need to be alive. Written while plane k runs, so a tile whose last ray dies on plane k may
-// be listed once more (its invocations then find nothing to do).
+// Whether the tiles pass clears deposits (beams with refraction or scattering deposit their
+// light): then it runs one workgroup per rect tile, one invocation per pixel; otherwise one
+// invocation per tile (`tile_groups` in state.rs), since a workgroup whose invocations have
+// nothing to do still costs its launch on a CPU driver (at 256², 1024 of them per plane took
+// a tenth of a plain render).
+fn tiles_clear_deposits() -> bool {
+    return BEAMS && (REFRACTION || SCATTER);
+}
+
+// Per rect tile: the pixels clear the light slot the next plane deposits into, and the tile
+// is listed for plane k+1 if it needs it: a ray alive whose next segment (or the one after,
+// so that a ray is stepped onto the plane before it has something to composite) meets a
+// visible brick. Refracted rays can be anywhere: they only need to be alive. Written while
+// plane k runs, so a tile whose last ray dies on plane k may be listed once more (its
+// invocations then find nothing to do).
 @compute @workgroup_size(TILE * TILE, 1, 1)
 fn tiles_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
     let k = dispatch_plane(wg);
-    let t = wg.y * P.tiles.z + wg.x;
+    let group = wg.y * P.tiles.z + wg.x;
+    var t = group * TILE * TILE + li;
+    if (tiles_clear_deposits()) {
+        t = group;
+    }
     if (t >= P.tiles.y) {
         return;
     }
-    if (BEAMS && (REFRACTION || SCATTER)) {
+    if (tiles_clear_deposits()) {
         // Plane k+1 deposits into the slot that plane k-2 used; its last reader was the view
         // dispatch of plane k-1. Every tile clears, listed or not: deposits land anywhere.
         let px = tile_pixel(t, li);
         if (in_rect(vec2<i32>(px))) {
             acc_clear((k + 1u) % 3u, px);
         }
+        if (li != 0u) {
+            return;
+        }
     }
-    if (li != 0u || P.culling.w == 0u) {
+    if (P.culling.w == 0u) {
         return;
     }
     if (t == 0u) {

@@ -94,6 +94,18 @@ fn pyramid_texels(w: u32, h: u32, levels: u32) -> u64 {
         .sum()
 }
 
+/// Workgroups of the tiles pass for `view_groups` rect tiles: one per tile where it clears
+/// the deposits pixel by pixel (beams with refraction or scattering), else one invocation per
+/// tile (`tiles_clear_deposits` in sweep.wgsl).
+fn tile_groups(features: &Features, view_groups: u32) -> u32 {
+    let clears = features.transport == LightTransport::Beams && (features.refraction || features.scatter);
+    if clears {
+        view_groups
+    } else {
+        view_groups.div_ceil(Pass::TILE * Pass::TILE)
+    }
+}
+
 /// Workgroups of a dispatch laid out in rows of `MAX_GROUPS_PER_ROW` (the shaders linearise
 /// them with the same width).
 fn groups(n: u32) -> [u32; 3] {
@@ -490,6 +502,7 @@ pub(super) fn run(
         planes_run - 1
     };
     let bar = progress_bar(req.progress, dispatches as u64);
+    let tile_groups = tile_groups(&features, layout.view_groups);
     let mut gpu_ms = lbm_light.as_ref().map_or(0.0, |l| l.stats.gpu_ms);
     let mut plane = 1u32;
     let mut rec = Some(rec);
@@ -529,7 +542,7 @@ pub(super) fn run(
                 }
             }
             // Clears the ring for the next plane's deposits and lists its view tiles.
-            r.dispatch(&pipelines[3], &sets[3], p, groups(layout.view_groups))?;
+            r.dispatch(&pipelines[3], &sets[3], p, groups(tile_groups))?;
             r.compute_to_indirect();
             plane += 1;
         }
