@@ -101,3 +101,53 @@ pub fn starts(view: &ViewSetup, grid: &BeamGrid, light: glam::Vec3, margin: [f32
         })
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::builtin;
+    use crate::scene::view::light_direction;
+
+    /// Every beam is outside the margin on the planes before its tile starts: checked plane by
+    /// plane along each beam's straight line, independently of the slab test, with a light
+    /// at an angle so that tiles start on different planes.
+    #[test]
+    fn no_beam_comes_near_the_box_before_its_tile_starts() {
+        let mut scene = builtin("ball-lens").unwrap().scene;
+        scene.light.polar_deg = 35.0;
+        scene.light.azimuth_deg = -40.0;
+        let view = ViewSetup::new(&scene, [64, 40, 64], [1.0; 3], 48, 48).unwrap();
+        let light = light_direction(&scene.light);
+        let grid = view.beam_grid(light, 1.0, false);
+        let scale = texture_scale(&view);
+        let margin = scale.map(|s| s * 2.0 * view.step);
+        let starts = starts(&view, &grid, light, margin);
+        let tx = grid.width.div_ceil(Pass::TILE) as usize;
+        let volume_from_view = view.volume_from_view();
+        let mut later = 0;
+        for j in 0..grid.height {
+            for i in 0..grid.width {
+                let e = glam::Vec2::new(grid.x0, grid.y0) + (glam::Vec2::new(i as f32, j as f32) + 0.5) * grid.stride;
+                let p0 = view.point_at(e, view.z_first);
+                let first = (0..view.planes).find(|&k| {
+                    let p = p0 + light * ((view.plane_z(k) - view.z_first) / light.z);
+                    let q = volume_from_view.transform_point3(p);
+                    (0..3).all(|a| q[a] >= -margin[a] && q[a] <= 1.0 + margin[a])
+                });
+                let t = (j / Pass::TILE) as usize * tx + (i / Pass::TILE) as usize;
+                if let Some(first) = first {
+                    assert!(
+                        starts[t][0] <= first.max(1),
+                        "beam ({i}, {j}) is near the box on plane {first}, its tile starts on {:?}",
+                        starts[t]
+                    );
+                    assert!(starts[t][1] <= starts[t][0]);
+                }
+                if starts[t][1] > 1 {
+                    later += 1;
+                }
+            }
+        }
+        assert!(later > 0, "every tile starts on plane 1: the test shows nothing");
+    }
+}
