@@ -36,6 +36,7 @@ struct Beam {
     value: f32,         // data value at pos (front of the next segment)
     shadow: f32,        // depth where the light it lost was lost (loss-weighted), for soft light
     power: vec3<f32>,   // relative to one plane-0 cell of unobstructed light
+    plane: u32,         // the plane it was stored on (light tiles listed: not always the last)
 }
 
 fn load_beam(index: u32, half: u32, z: f32) -> Beam {
@@ -55,15 +56,209 @@ fn load_beam(index: u32, half: u32, z: f32) -> Beam {
     b.value = aux.y;
     b.shadow = aux.z;
     b.power = load_beam_power(half * n + index).rgb;
+    b.plane = u32(aux.w);
     return b;
 }
 
-fn store_beam(index: u32, half: u32, b: Beam) {
+// ---------------------------------------------------------------------------------------
+// Light tiles listed per plane (`list_light_tile`, run by `tiles_main` in sweep.wgsl): a tile
+// of beams is stepped only from shortly before one of its beams (or a neighbouring tile's)
+// comes within a margin of the volume's box until none of them can any more. Outside the box nothing attenuates or
+// bends a beam, so a tile not yet stepped holds the beams' initial state carried straight,
+// and one no longer stepped keeps the state of its last plane, from where it is carried
+// straight as well. The margin covers what the view reads around a sample (the deposits'
+// reach, a view segment either side, trilinear sampling), so that the light where particles
+// are is the same as with every beam stepped.
+
+const NEVER: u32 = 0xffffffffu;
+
+fn light_tiles_listed() -> bool {
+    return P.light_box.w > 0.0;
+}
+
+// The tile of the light grid of beam ij.
+fn beam_tile(ij: vec2<u32>) -> u32 {
+    let t = ij / TILE;
+    return t.y * P.beam_grid.z + t.x;
+}
+
+// Beam ij on plane `plane` (>= 1) when it was never stepped: its state from `beams_init`
+// carried straight. The tile starts being stepped before any of its beams comes within the
+// margin, so until then the beam is in front of the volume (index and value those outside
+// it). With `exact` it is drifted one plane at a time as `beams_step` would have, to the bit
+// (for the tile's own first step); else in one go (a neighbour's, for a footprint outside
+// the margin).
+fn pre_entry_beam(ij: vec2<u32>, plane: u32, exact: bool) -> Beam {
+    var b: Beam;
+    let z0 = P.plane.x;
+    b.v = P.light_dir.xyz * P.texel.w;
+    var p = unproject(beam_cell_centre(ij) - vec2<f32>(0.5), z0);
+    let z = plane_z(plane);
+    if (REFRACTION) {
+        // As `beams_init` with η outside the volume (the gradient volume's border is 0).
+        b.v = entering(P.light_dir.xyz, 0.0 + P.texel.w);
+        let d = light_direction(b.v);
+        let steps = select(0u, plane, exact);
+        for (var j = 1u; j <= steps; j++) {
+            let q = vec3<f32>(p.xy, plane_z(j - 1u));
+            p = q + d * ((plane_z(j) - q.z) / d.z);
+        }
+        if (!exact) {
+            p = p + d * ((z - p.z) / d.z);
+        }
+    }
+    b.pos = vec3<f32>(p.xy, z);
+    b.plane = plane;
+    b.value = 0.0;
+    b.shadow = z0;
+    b.power = vec3<f32>(1.0);
+    if (REFRACTION && safe_normalize(b.v).z < P.limits.x && guarded(SG_LIGHT_MIN_Z)) {
+        b.power = vec3<f32>(0.0); // as the first step's kick leaves it
+    }
+    return b;
+}
+
+// Beam ij's state on plane `plane`, which with light tiles listed may have been stored on an
+// earlier plane (`load_stored_beam`).
+fn load_beam_at(ij: vec2<u32>, plane: u32, exact: bool) -> Beam {
+    let index = ij.y * P.beam_grid.x + ij.x;
+    var b = load_beam(index, plane % 2u, plane_z(plane));
+    if (light_tiles_listed() && b.plane != plane) {
+        b = load_stored_beam(ij, plane, exact);
+    }
+    return b;
+}
+
+// Beam ij's state on plane `plane` (>= 1) when its tile was not stepped on it: the newer of the
+// two halves carried straight from its plane (the tile is no longer stepped), or, if that is
+// plane 0, `pre_entry_beam` (never stepped).
+fn load_stored_beam(ij: vec2<u32>, plane: u32, exact: bool) -> Beam {
+    let n = beam_count();
+    let index = ij.y * P.beam_grid.x + ij.x;
+    var half = plane % 2u;
+    var stored = u32(beam_aux[half * n + index].w);
+    // The other half may be being written on the plane after (a tile that starts there): only
+    // a plane before counts.
+    let other = u32(beam_aux[(1u - half) * n + index].w);
+    if (other > stored && other < plane) {
+        half = 1u - half;
+        stored = other;
+    }
+    if (stored == 0u) {
+        return pre_entry_beam(ij, plane, exact);
+    }
+    // Unrefracted beams keep their cells: their position follows from the plane alone.
+    var z = plane_z(plane);
+    if (REFRACTION) {
+        z = plane_z(stored);
+    }
+    var b = load_beam(index, half, z);
+    if (REFRACTION) {
+        b.pos = vec3<f32>(drift(b.pos, b.v, plane_z(plane)).xy, plane_z(plane));
+    }
+    b.plane = plane;
+    return b;
+}
+
+// How far around a beam's position (view units, on its plane at p) its deposit on the pyramid
+// and the view's bilinear reads of it reach, for a footprint spanned by du and dv: half the
+// footprint, plus a texel of its level and one of the reads' (`deposit`, `deposited_at`).
+fn deposit_reach(p: vec3<f32>, du: vec3<f32>, dv: vec3<f32>) -> f32 {
+    let pu = project(p + du) - project(p);
+    let pv = project(p + dv) - project(p);
+    let widest = max(length(vec2<f32>(pu.x, pv.x)), length(vec2<f32>(pu.y, pv.y)));
+    let m = min(u32(max(ceil(log2(max(widest, 1.0))), 0.0)), acc_levels() - 1u);
+    return (0.5 * widest + 2.0 * f32(1u << m)) * sqrt(pixel_area(p.z));
+}
+
+// Whether light tile `t` (x, y in tiles) is in the window of plane k (`light_windows` in
+// state.rs): without refraction, light outside it cannot reach the image any more.
+fn in_light_window(t: vec2<u32>, k: u32) -> bool {
+    let w = light_window[k];
+    let r = vec2<i32>(t) - vec2<i32>(w.xy);
+    return r.x >= 0 && r.y >= 0 && r.x < i32(w.z) && u32(r.y) * w.z + u32(r.x) < w.w;
+}
+
+// Lists light tile t for plane k (>= 1) if its beams are to be stepped there: from the plane
+// its beams or a neighbouring tile's may come within the margin of the volume's box
+// (`light_start`), until neither it nor a neighbour has a beam left that can come within it
+// (`light_alive`, from plane k-1's step) or it leaves the window; then never again
+// (`light_end`). A tile keeps being stepped while a neighbour is, so
+// that the beams near the box read their neighbours' footprints and light exactly as with
+// every beam stepped.
+fn list_light_tile(t: u32, k: u32) {
+    let n = P.beam_grid.w;
+    let tx = P.beam_grid.z;
+    if (t >= n || k >= u32(P.plane.z)) {
+        return;
+    }
+    let start = light_start[t].y;
+    if (k < start || atomicLoad(&light_end[t]) != NEVER) {
+        return;
+    }
+    var stepped = k == start;
+    // Whether its beams and all they read were stepped on plane k-1 (on plane 1 every beam
+    // read is plane 0's, stored for all); else it is listed for `LIGHT_EDGE`.
+    var current = k == 1u || k != start;
+    let c = vec2<i32>(vec2<u32>(t % tx, t / tx));
+    for (var dy = -1; dy <= 1; dy++) {
+        for (var dx = -1; dx <= 1; dx++) {
+            let q = c + vec2<i32>(dx, dy);
+            if (q.x >= 0 && q.y >= 0 && q.x < i32(tx) && u32(q.y) * tx + u32(q.x) < n) {
+                let u = u32(q.y) * tx + u32(q.x);
+                let s = light_start[u];
+                // Not finished: its beams are still to come near the box, or one that was
+                // stepped on plane k-1 can still come within the margin.
+                if (s.x != NEVER && (s.y >= k || atomicLoad(&light_alive[u]) >= k - 1u)) {
+                    stepped = true;
+                }
+                // Stepped on plane k-1 (an end written meanwhile for another tile is k).
+                current = current && s.y <= k - 1u && atomicLoad(&light_end[u]) > k - 1u;
+            }
+        }
+    }
+    if (!stepped || !in_light_window(vec2<u32>(c), k)) {
+        atomicStore(&light_end[t], k);
+        return;
+    }
+    let list = (k % 2u) * 2u + select(1u, 0u, current || k == 1u);
+    let slot = atomicAdd(&light_args[list * 3u], 1u);
+    light_lists[list * n + slot] = t;
+}
+
+// Whether a beam at p travelling along d (unit) is within the margin of the volume's box, plus
+// `extra` (view units), or will come within it: the ray against the box in texture
+// coordinates (slabs; light_box.xyz: texture units per view unit along each axis at most).
+fn reaches_box(p: vec3<f32>, d: vec3<f32>, extra: f32) -> bool {
+    let q = volume_coord(p);
+    let dq = (P.volume_from_view * vec4<f32>(d, 0.0)).xyz;
+    let margin = P.light_box.xyz * (P.budget.z + extra);
+    let lo = -margin;
+    let hi = vec3<f32>(1.0) + margin;
+    var t0 = 0.0;
+    var t1 = 3.4e38;
+    var hit = true;
+    for (var a = 0u; a < 3u; a++) {
+        if (abs(dq[a]) < 1e-20) {
+            hit = hit && q[a] >= lo[a] && q[a] <= hi[a];
+        } else {
+            let ta = (lo[a] - q[a]) / dq[a];
+            let tb = (hi[a] - q[a]) / dq[a];
+            t0 = max(t0, min(ta, tb));
+            t1 = min(t1, max(ta, tb));
+        }
+    }
+    return hit && t0 <= t1;
+}
+
+// Stores beam `index`'s state on plane `plane` in half `half` (the plane in aux.w: with light
+// tiles listed a beam not stepped on a plane is found in the other half, or not at all).
+fn store_beam(index: u32, half: u32, plane: u32, b: Beam) {
     let n = beam_count();
     if (REFRACTION) {
         beam_pos[half * n + index] = vec4<f32>(b.pos.xy, b.v.xy);
     }
-    beam_aux[half * n + index] = vec4<f32>(b.v.z, b.value, b.shadow, 0.0);
+    beam_aux[half * n + index] = vec4<f32>(b.v.z, b.value, b.shadow, f32(plane));
     store_beam_power(half * n + index, vec4<f32>(b.power, 0.0));
 }
 
@@ -295,7 +490,16 @@ fn beams_init(ij: vec2<u32>) {
     }
     b.shadow = z0;
     b.power = vec3<f32>(1.0);
-    store_beam(index, 0u, b);
+    // Both halves: with light tiles listed, a beam found on plane 0 in both was never stepped.
+    store_beam(index, 0u, 0u, b);
+    store_beam(index, 1u, 0u, b);
+    if (!REFRACTION) {
+        // The view looks up every cell's light (and the power before the segment): cells
+        // outside the volume's box may not be stepped, and what it reads there (where no
+        // particle is) must at least be finite.
+        store_beam_power(2u * beam_count() + index, vec4<f32>(b.power, 0.0));
+        store_beam_power(3u * beam_count() + index, vec4<f32>(b.power, 0.0));
+    }
     if (SCATTER) {
         beam_scatter[2u * index] = vec4<f32>(0.0);
         beam_scatter[2u * index + 1u] = vec4<f32>(0.0);
@@ -319,25 +523,29 @@ struct Neighbour {
     shadow: f32,
 }
 
-fn load_neighbour(ij: vec2<i32>, half: u32, z_prev: f32, z: f32) -> Neighbour {
+fn load_neighbour(ij: vec2<i32>, plane: u32, z: f32, own_tile: u32, current: bool) -> Neighbour {
     var o: Neighbour;
     if (ij.x < 0 || ij.y < 0 || ij.x >= i32(P.beam_grid.x) || ij.y >= i32(P.beam_grid.y)) {
         o.pos = vec4<f32>(0.0);
         return o;
     }
-    let i = half * beam_count() + u32(ij.y) * P.beam_grid.x + u32(ij.x);
+    var b: Beam;
+    if (current) {
+        b = load_beam(u32(ij.y) * P.beam_grid.x + u32(ij.x), plane % 2u, plane_z(plane));
+    } else {
+        // Within the beam's own tile, a neighbour not stepped yet starts with it: drifted to
+        // the bit as it will be.
+        b = load_beam_at(vec2<u32>(ij), plane, beam_tile(vec2<u32>(ij)) == own_tile);
+    }
     if (REFRACTION) {
-        let a = beam_pos[i];
-        let aux = beam_aux[i];
-        o.pos = vec4<f32>(drift(vec3<f32>(a.xy, z_prev), vec3<f32>(a.zw, aux.x), z), 1.0);
-        o.shadow = aux.z;
+        o.pos = vec4<f32>(drift(b.pos, b.v, z), 1.0);
     } else {
         // Unrefracted beams keep their cells: only the light is read.
         o.pos = vec4<f32>(0.0, 0.0, 0.0, 1.0);
-        o.shadow = beam_aux[i].z;
     }
+    o.shadow = b.shadow;
     if (LIGHT_FILTER) {
-        o.power = load_beam_power(i).rgb;
+        o.power = b.power;
     }
     return o;
 }
@@ -399,18 +607,34 @@ fn diffuse(b: Beam, nb_power: array<vec3<f32>, 4>, nb_shadow: vec4<f32>, spacing
     return vec4<f32>(flux, shadow);
 }
 
+// How `beams_step` finds the beams it reads; a constant at each entry point, so that a CPU
+// driver, which runs every branch a workgroup takes, compiles only what that pass needs.
+// Every tile of the light window is stepped on every plane.
+const LIGHT_WINDOW: u32 = 0u;
+// Light tiles listed (`list_light_tile`) whose beams and neighbours were all stepped on the
+// plane before.
+const LIGHT_LISTED: u32 = 1u;
+// Light tiles listed that start being stepped, or have a neighbour tile that was not stepped
+// on the plane before: beams are found wherever they were stored (`load_beam_at`).
+const LIGHT_EDGE: u32 = 2u;
+
 // One beam from plane k-1 to plane k: drift, attenuation over the segment, soft light,
-// deposit on plane k, kick (Eq. 8 and Snell at the new position).
-fn beams_step(ij: vec2<u32>, k: u32) {
+// deposit on plane k, kick (Eq. 8 and Snell at the new position). `tile`: ij's light tile;
+// `mode`: LIGHT_WINDOW, LIGHT_LISTED or LIGHT_EDGE.
+fn beams_step(ij: vec2<u32>, k: u32, tile: u32, mode: u32) {
     if (ij.x >= P.beam_grid.x || ij.y >= P.beam_grid.y) {
         return;
     }
     let index = ij.y * P.beam_grid.x + ij.x;
-    let read = (k - 1u) % 2u;
-    let z_prev = plane_z(k - 1u);
     let z = plane_z(k);
+    let current = mode != LIGHT_EDGE;
     let ds = P.plane.y;
-    var b = load_beam(index, read, z_prev);
+    var b: Beam;
+    if (current) {
+        b = load_beam(index, (k - 1u) % 2u, plane_z(k - 1u));
+    } else {
+        b = load_beam_at(ij, k - 1u, true);
+    }
     let x0 = b.pos;
     b.pos = drift(b.pos, b.v, z);
     let d = light_direction(b.v);
@@ -440,10 +664,10 @@ fn beams_step(ij: vec2<u32>, k: u32) {
     // view attenuates along its own light line (`beams_unscattered_through`, `beams_light_through`).
     var front = lost_before;
     if (REFRACTION || LIGHT_FILTER) {
-        nb[0] = load_neighbour(gi - vec2<i32>(1, 0), read, z_prev, z);
-        nb[1] = load_neighbour(gi + vec2<i32>(1, 0), read, z_prev, z);
-        nb[2] = load_neighbour(gi - vec2<i32>(0, 1), read, z_prev, z);
-        nb[3] = load_neighbour(gi + vec2<i32>(0, 1), read, z_prev, z);
+        nb[0] = load_neighbour(gi - vec2<i32>(1, 0), k - 1u, z, tile, current);
+        nb[1] = load_neighbour(gi + vec2<i32>(1, 0), k - 1u, z, tile, current);
+        nb[2] = load_neighbour(gi - vec2<i32>(0, 1), k - 1u, z, tile, current);
+        nb[3] = load_neighbour(gi + vec2<i32>(0, 1), k - 1u, z, tile, current);
     }
     if (REFRACTION) {
         du = cell_axis(b.pos, nb[0].pos, nb[1].pos);
@@ -505,7 +729,19 @@ fn beams_step(ij: vec2<u32>, k: u32) {
             b.power = vec3<f32>(0.0);
         }
     }
-    store_beam(index, k % 2u, b);
+    store_beam(index, k % 2u, k, b);
+    if (mode != LIGHT_WINDOW) {
+        // Without refraction the view looks the light up in the cells (within the margin).
+        var d = P.light_dir.xyz;
+        var reach = 0.0;
+        if (REFRACTION) {
+            d = light_direction(b.v);
+            reach = deposit_reach(b.pos, du, dv);
+        }
+        if (reaches_box(b.pos, d, reach)) {
+            atomicStore(&light_alive[tile], k);
+        }
+    }
 }
 
 // The power budget (quality.max_concentration): a safeguard for extreme scenes; beams

@@ -89,12 +89,13 @@ struct Params {
     texel: vec4<f32>,                // 1 / volume dims (xyz), η outside the volume (w)
     background: vec4<f32>,           // rgb background when there is no environment map; w: 1 = use env map
     limits: vec4<f32>,               // min light dir z, min view dir z, max light value, env map mip count
-    budget: vec4<f32>,               // x: max concentration (light / source light); y: interface half-width (view units); zw: unused
+    budget: vec4<f32>,               // x: max concentration (light / source light); y: interface half-width (view units); z: light tiles' margin around the box (view units); w: unused
     beam_origin: vec4<f32>,          // beams: plane-0 pixel coords of cell (0, 0)'s corner (xy), stride (z), plane-0 cell area / pixel area (w)
     beam_grid: vec4<u32>,            // light grid: width, height, tiles in x, workgroups
     rect: vec4<u32>,                 // pixels whose rays can meet the volume: x0, y0, x1, y1 (half-open)
     tiles: vec4<u32>,                // view tiles in x, view workgroups, workgroups per dispatch row (all passes), light channels
     culling: vec4<u32>,              // bricks along x, y, z; 1 when view tiles are listed per plane (else all are dispatched)
+    light_box: vec4<f32>,            // beams: texture units per view unit along each axis at most (xyz); w: 1 when light tiles are listed per plane
 }
 
 struct Immediates {
@@ -161,6 +162,20 @@ struct Immediates {
 // optical depth along its path.
 @group(0) @binding(26) var<storage, read> scatter_table: array<vec4<f32>>;
 @group(0) @binding(27) var<storage, read_write> beam_scatter: array<vec4<f32>>;
+
+// Beams with light tiles listed per plane (`light_tiles_listed`), per tile of the light grid:
+// the first plane on which one of its beams, carried straight, is within the margin of the
+// volume's box (x; NEVER if none) and the smallest of those over it and its eight neighbours
+// (y: the plane from which it is stepped), computed on the CPU; the plane from which it is no
+// longer stepped (NEVER while it is); the last plane on which one of its beams could still
+// come within the margin; per plane parity two lists of the tiles a plane steps (LIGHT_LISTED
+// and LIGHT_EDGE in beams.wgsl), and their indirect dispatch arguments (x, y, z; x counts the
+// tiles).
+@group(0) @binding(28) var<storage, read> light_start: array<vec2<u32>>;
+@group(0) @binding(29) var<storage, read_write> light_end: array<atomic<u32>>;
+@group(0) @binding(30) var<storage, read_write> light_alive: array<atomic<u32>>;
+@group(0) @binding(31) var<storage, read_write> light_lists: array<u32>;
+@group(0) @binding(32) var<storage, read_write> light_args: array<atomic<u32>>;
 
 var<immediate> I: Immediates;
 

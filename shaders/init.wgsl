@@ -8,16 +8,23 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) l
         let ij = vec2<u32>(group % P.beam_grid.z, group / P.beam_grid.z) * TILE + local;
         if (BEAMS) {
             beams_init(ij);
+            if (light_tiles_listed() && li == 0u) {
+                list_light_tile(group, 1u);
+            }
         } else {
             backward_init(ij);
         }
         return;
     }
     let vg = group - P.beam_grid.w;
-    if (vg == 0u && li < 3u) {
+    if (vg == 0u && li < 4u) {
         // The lists' indirect arguments: one row of workgroups (x counts the tiles).
-        atomicStore(&tile_args[li * 3u + 1u], 1u);
-        atomicStore(&tile_args[li * 3u + 2u], 1u);
+        if (li < 3u) {
+            atomicStore(&tile_args[li * 3u + 1u], 1u);
+            atomicStore(&tile_args[li * 3u + 2u], 1u);
+        }
+        atomicStore(&light_args[li * 3u + 1u], 1u);
+        atomicStore(&light_args[li * 3u + 2u], 1u);
     }
     if (vg >= P.tiles.y) {
         return;

@@ -17,10 +17,31 @@ fn light_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_in
     let tile = window.xy + vec2<u32>(group % window.z, group / window.z);
     let ij = tile * TILE + vec2<u32>(li % TILE, li / TILE);
     if (BEAMS) {
-        beams_step(ij, k);
+        beams_step(ij, k, tile.y * P.beam_grid.z + tile.x, LIGHT_WINDOW);
     } else {
         backward_step(ij, k);
     }
+}
+
+// Beams with light tiles listed: the tiles of list `list` (LIGHT_LISTED or LIGHT_EDGE) for
+// plane k, one per workgroup (indirect, `list_light_tile`).
+fn light_listed(wg: vec3<u32>, li: u32, list: u32) {
+    let k = dispatch_plane(wg);
+    let group = wg.y * P.tiles.z + wg.x;
+    let n = P.beam_grid.w;
+    let t = light_lists[((k % 2u) * 2u + list - LIGHT_LISTED) * n + group];
+    let tile = vec2<u32>(t % P.beam_grid.z, t / P.beam_grid.z);
+    beams_step(tile * TILE + vec2<u32>(li % TILE, li / TILE), k, t, list);
+}
+
+@compute @workgroup_size(TILE * TILE, 1, 1)
+fn light_listed_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
+    light_listed(wg, li, LIGHT_LISTED);
+}
+
+@compute @workgroup_size(TILE * TILE, 1, 1)
+fn light_edge_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
+    light_listed(wg, li, LIGHT_EDGE);
 }
 
 // Pixel of invocation `li` of rect tile `tile`.
@@ -77,6 +98,19 @@ fn tiles_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_in
         t = group;
     }
     if (t >= P.tiles.y) {
+        if (BEAMS && light_tiles_listed()) {
+            // The workgroups after the view tiles' list the light tiles of plane k+1, one per
+            // invocation (plane k's light is complete: a barrier separates this pass from
+            // it). The list after next starts empty (its last reader was plane k's light).
+            var lt = t - P.tiles.y;
+            if (tiles_clear_deposits()) {
+                lt = lt * TILE * TILE + li;
+            }
+            if (lt < 2u) {
+                atomicStore(&light_args[((k % 2u) * 2u + lt) * 3u], 0u);
+            }
+            list_light_tile(lt, k + 1u);
+        }
         return;
     }
     if (tiles_clear_deposits()) {

@@ -41,6 +41,12 @@ fn visible(tf: &TransferFunctions, a: f32, b: f32) -> bool {
     (1..=3).any(|k| range_of(&tf.medium.points, k, a, b, |x| tf.medium.eval(x)[k - 1]).0 < 1.0)
 }
 
+/// Whether the value outside the volume (0: the textures' border) absorbs or shows nothing,
+/// so that light passing outside the volume's box keeps its power.
+pub fn clear_outside(tf: &TransferFunctions) -> bool {
+    !visible(tf, 0.0, 0.0)
+}
+
 /// The bricks of a volume of `dims` voxels with 16-bit samples (0..65535 ↦ [0, 1]).
 pub fn bricks(samples: &[u16], dims: [usize; 3], tf: &TransferFunctions) -> Bricks {
     let nb = dims.map(|d| d.div_ceil(BRICK).max(1));

@@ -7,6 +7,7 @@ pub mod bricks;
 mod features;
 pub mod gradient;
 pub mod lbm;
+mod light_tiles;
 mod params;
 pub mod safeguards;
 pub mod shaders;
@@ -265,6 +266,8 @@ impl Renderer {
             self.pipeline(Pass::View, precision, features, req.debug_view, off)?,
             self.pipeline(Pass::Tiles, precision, features, req.debug_view, off)?,
             self.pipeline(Pass::Finish, precision, features, req.debug_view, off)?,
+            self.pipeline(Pass::LightListed, precision, features, req.debug_view, off)?,
+            self.pipeline(Pass::LightEdge, precision, features, req.debug_view, off)?,
         ];
         if features.lbm && self.lbm.is_none() {
             self.lbm = Some(lbm::Pipelines::new(&self.ctx)?);

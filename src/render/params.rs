@@ -20,7 +20,8 @@ pub struct Params {
     pub background: [f32; 4],
     pub limits: [f32; 4],
     /// x: largest concentration of the light (quality.max_concentration); y: half-width of an
-    /// index interface for the Fresnel term (view units); zw unused.
+    /// index interface for the Fresnel term (view units); z: beams with light tiles listed:
+    /// the margin around the volume's box within which beams are stepped (view units); w unused.
     pub budget: [f32; 4],
     /// Light grid: plane-0 pixel coordinates of cell (0, 0)'s corner, stride (pixels per
     /// cell), cell area over pixel area on plane 0.
@@ -33,6 +34,10 @@ pub struct Params {
     pub tiles: [u32; 4],
     /// Bricks along x, y, z; 1 when view tiles are listed per plane (else all are dispatched).
     pub culling: [u32; 4],
+    /// Beams: texture units per view unit along each axis at most (to turn the margin of
+    /// `budget.z` into texture coordinates); w: 1 when light tiles are listed per plane (else
+    /// every tile of the light window is dispatched).
+    pub light_box: [f32; 4],
 }
 
 /// Mirrors `struct Immediates` (push constants).
@@ -52,7 +57,7 @@ mod tests {
     #[test]
     fn params_layout_matches_wgsl() {
         let src = format!(
-            "{}\n@compute @workgroup_size(1) fn main() {{ _ = P.culling; _ = I.seed; }}",
+            "{}\n@compute @workgroup_size(1) fn main() {{ _ = P.light_box; _ = I.seed; }}",
             crate::render::shaders::COMMON
         );
         let module = naga::front::wgsl::parse_str(&src).expect("common.wgsl parses");
@@ -72,7 +77,7 @@ mod tests {
             panic!()
         };
         let expected = [
-            0, 64, 128, 192, 208, 224, 240, 256, 272, 288, 304, 320, 336, 352, 368, 384, 400, 416, 432,
+            0, 64, 128, 192, 208, 224, 240, 256, 272, 288, 304, 320, 336, 352, 368, 384, 400, 416, 432, 448,
         ];
         let offsets: Vec<u32> = members.iter().map(|m| m.offset).collect();
         assert_eq!(offsets, expected);

@@ -19,18 +19,32 @@ pub enum Pass {
     Init,
     Light,
     View,
-    /// Per view tile: clears the next plane's deposits and lists the tiles it needs.
+    /// Per view tile: clears the next plane's deposits and lists the tiles it needs (and the
+    /// light tiles, when they are listed).
     Tiles,
     Finish,
+    /// Beams with light tiles listed: the listed tiles whose beams and neighbours are all on
+    /// the plane before.
+    LightListed,
+    /// Beams with light tiles listed: the listed tiles that start, or border tiles not stepped.
+    LightEdge,
 }
 
 impl Pass {
-    pub const ALL: [Pass; 5] = [Pass::Init, Pass::Light, Pass::View, Pass::Tiles, Pass::Finish];
+    pub const ALL: [Pass; 7] = [
+        Pass::Init,
+        Pass::Light,
+        Pass::View,
+        Pass::Tiles,
+        Pass::Finish,
+        Pass::LightListed,
+        Pass::LightEdge,
+    ];
 
     pub fn file(self) -> &'static str {
         match self {
             Pass::Init => "init.wgsl",
-            Pass::Light | Pass::View | Pass::Tiles => "sweep.wgsl",
+            Pass::Light | Pass::View | Pass::Tiles | Pass::LightListed | Pass::LightEdge => "sweep.wgsl",
             Pass::Finish => "finish.wgsl",
         }
     }
@@ -41,6 +55,8 @@ impl Pass {
             Pass::Light => "light_main",
             Pass::View => "view_main",
             Pass::Tiles => "tiles_main",
+            Pass::LightListed => "light_listed_main",
+            Pass::LightEdge => "light_edge_main",
             Pass::Init | Pass::Finish => "main",
         }
     }
@@ -48,7 +64,9 @@ impl Pass {
     fn body(self) -> &'static str {
         match self {
             Pass::Init => include_str!("../../shaders/init.wgsl"),
-            Pass::Light | Pass::View | Pass::Tiles => include_str!("../../shaders/sweep.wgsl"),
+            Pass::Light | Pass::View | Pass::Tiles | Pass::LightListed | Pass::LightEdge => {
+                include_str!("../../shaders/sweep.wgsl")
+            }
             Pass::Finish => include_str!("../../shaders/finish.wgsl"),
         }
     }
@@ -96,7 +114,14 @@ mod tests {
     fn the_tile_size_matches_the_shaders() {
         let line = format!("const TILE: u32 = {}u;", Pass::TILE);
         assert!(COMMON.contains(&line), "common.wgsl lacks '{line}'");
-        for pass in [Pass::Init, Pass::Light, Pass::View, Pass::Tiles] {
+        for pass in [
+            Pass::Init,
+            Pass::Light,
+            Pass::View,
+            Pass::Tiles,
+            Pass::LightListed,
+            Pass::LightEdge,
+        ] {
             let compiled = pass
                 .parse()
                 .unwrap()

@@ -12,6 +12,7 @@ use glam::Mat4;
 
 use crate::gpu::{Buffer, ComputePipeline, Context, DescriptorSet, GpuError, Recorder, Resource, Timestamps};
 
+use super::light_tiles::{self, NEVER};
 use super::shaders::Pass;
 use super::upload::{CachedTextures, SceneTextures, TexturesKey};
 use super::{
@@ -64,6 +65,9 @@ struct Layout {
     /// The view tiles each plane needs are listed on the device and dispatched indirectly
     /// (one row of workgroups: at most MAX_GROUPS_PER_ROW tiles).
     lists: bool,
+    /// The light tiles each plane steps are listed on the device and dispatched indirectly
+    /// (`light_tiles_listed` in beams.wgsl); else every tile of the plane's light window is.
+    light_lists: bool,
 }
 
 impl Layout {
@@ -77,6 +81,7 @@ impl Layout {
             view_groups,
             channels,
             lists: view_groups <= MAX_GROUPS_PER_ROW,
+            light_lists: false,
         }
     }
 }
@@ -94,15 +99,17 @@ fn pyramid_texels(w: u32, h: u32, levels: u32) -> u64 {
         .sum()
 }
 
-/// Workgroups of the tiles pass for `view_groups` rect tiles: one per tile where it clears
-/// the deposits pixel by pixel (beams with refraction or scattering), else one invocation per
-/// tile (`tiles_clear_deposits` in sweep.wgsl).
-fn tile_groups(features: &Features, view_groups: u32) -> u32 {
+/// Workgroups of the tiles pass for `view_groups` rect tiles and `light_tiles` light tiles to
+/// list: one per rect tile where it clears the deposits pixel by pixel (beams with refraction
+/// or scattering), else one invocation per rect tile (`tiles_clear_deposits` in sweep.wgsl);
+/// then one invocation per light tile.
+fn tile_groups(features: &Features, view_groups: u32, light_tiles: u32) -> u32 {
+    let per_group = Pass::TILE * Pass::TILE;
     let clears = features.transport == LightTransport::Beams && (features.refraction || features.scatter);
     if clears {
-        view_groups
+        view_groups + light_tiles.div_ceil(per_group)
     } else {
-        view_groups.div_ceil(Pass::TILE * Pass::TILE)
+        (view_groups + light_tiles).div_ceil(per_group)
     }
 }
 
@@ -163,6 +170,8 @@ fn make_params(
     layout: &Layout,
     env_levels: u32,
     brick_dims: [u32; 3],
+    light_box: [f32; 4],
+    light_margin: f32,
 ) -> Params {
     let scene = &prepared.scene;
     let vol = &prepared.volume;
@@ -225,7 +234,7 @@ fn make_params(
         budget: [
             scene.quality.max_concentration(),
             INTERFACE_HALF_WIDTH_VOXELS * min_spacing,
-            0.0,
+            light_margin,
             0.0,
         ],
         beam_origin: [g.x0, g.y0, g.stride, g.stride * g.stride],
@@ -238,6 +247,7 @@ fn make_params(
             layout.channels,
         ],
         culling: [brick_dims[0], brick_dims[1], brick_dims[2], u32::from(layout.lists)],
+        light_box,
     }
 }
 
@@ -278,7 +288,7 @@ impl State {
         let refraction = features.refraction;
         let back_dir = !beams && (refraction || features.intensity_correction);
         let levels = if features.scatter { SCATTER_LEVELS } else { ACC_LEVELS };
-        let sizes: [(&str, u64, bool); 16] = [
+        let sizes: [(&str, u64, bool); 20] = [
             ("view_light", pixels * rgba, true),
             ("view_ray", pixels * 16, refraction),
             ("view_aux", pixels * 16, true),
@@ -300,6 +310,10 @@ impl State {
             ("view_tiles", layout.view_groups as u64 * 4, true),
             ("tile_lists", LIGHT_RING * layout.view_groups as u64 * 4, layout.lists),
             ("tile_args", LIGHT_RING * 12, true),
+            ("light_end", layout.beam_groups as u64 * 4, layout.light_lists),
+            ("light_alive", layout.beam_groups as u64 * 4, layout.light_lists),
+            ("light_lists", 4 * layout.beam_groups as u64 * 4, layout.light_lists),
+            ("light_args", 4 * 12, true),
         ];
         let mut buffers = Vec::new();
         let mut bytes = 0;
@@ -325,7 +339,7 @@ impl State {
 /// The pipelines of one render: the sweep's passes (`Pass::ALL` in order), and the lattice's
 /// when the scene uses it.
 pub(super) struct Passes<'a> {
-    pub sweep: &'a [Arc<ComputePipeline>; 5],
+    pub sweep: &'a [Arc<ComputePipeline>; 7],
     pub lbm: Option<&'a super::lbm::Pipelines>,
 }
 
@@ -367,8 +381,24 @@ pub(super) fn run(
     let grid = view
         .beam_grid(light, scene.quality.beams_per_texel, !deposits)
         .shifted(req.jitter[1], req.jitter[2]);
-    let layout = Layout::new(&view, grid, light_channels(&features, req.debug_view));
+    let mut layout = Layout::new(&view, grid, light_channels(&features, req.debug_view));
     let windows = light_windows(&view, &grid, light, features.refraction);
+    // Beams are stepped only near the volume's box where nothing outside it absorbs and the
+    // image is all that is shown (the light diagnostics show the light outside the box too);
+    // the spread mode's clouds reach further than the margin.
+    layout.light_lists = features.transport == LightTransport::Beams
+        && !features.scatter
+        && matches!(req.debug_view, DebugView::Image | DebugView::Medium)
+        && super::bricks::clear_outside(&prepared.tf)
+        && layout.beam_groups <= MAX_GROUPS_PER_ROW;
+    let (light_box, light_margin, starts) = if layout.light_lists {
+        let (every, straight) = light_tiles::margins(&view, &grid, scene.quality.sample_distance, features.refraction);
+        let scale = light_tiles::texture_scale(&view);
+        let starts = light_tiles::starts(&view, &grid, light, scale.map(|s| s * straight));
+        ([scale[0], scale[1], scale[2], 1.0], every, starts)
+    } else {
+        ([0.0; 4], 0.0, vec![[NEVER; 2]; 2])
+    };
 
     let window = prepared.window();
     // Scene textures are kept between renders while what they hold is unchanged (an
@@ -423,10 +453,13 @@ pub(super) fn run(
             &layout,
             cached.textures.env_levels,
             cached.textures.brick_dims,
+            light_box,
+            light_margin,
         )),
     )?;
     let state = State::new(ctx, &view, &layout, &features, precision)?;
     let window_buffer = Buffer::new_storage_from(ctx, "light windows", bytemuck::cast_slice(&windows))?;
+    let start_buffer = Buffer::new_storage_from(ctx, "light tile starts", bytemuck::cast_slice(&starts))?;
     // ω and g per data value for the spread mode (a placeholder entry pair otherwise).
     let table = if features.scatter {
         crate::transfer::scattering::scattering_table(&prepared.tf)
@@ -453,6 +486,7 @@ pub(super) fn run(
             ("env_tex", Resource::Image(&t.env)),
             ("env_sampler", Resource::Sampler(&t.env_sampler)),
             ("light_window", Resource::Buffer(&window_buffer)),
+            ("light_start", Resource::Buffer(&start_buffer)),
             ("scatter_table", Resource::Buffer(&scatter_table)),
             ("bricks", Resource::Buffer(&t.bricks)),
             ("lbm_grid", Resource::Buffer(lbm_grid)),
@@ -473,7 +507,18 @@ pub(super) fn run(
     rec.fill(state.get("light_acc")?, 0);
     rec.fill(state.get("view_tiles")?, 0);
     rec.fill(state.get("tile_args")?, 0);
+    rec.fill(state.get("light_end")?, NEVER);
+    rec.fill(state.get("light_alive")?, 0);
+    rec.fill(state.get("light_args")?, 0);
     let tile_args = state.get("tile_args")?;
+    let light_args = state.get("light_args")?;
+    // The tiles pass also lists the next plane's light tiles, one per invocation after the
+    // view tiles'.
+    let tile_groups = tile_groups(
+        &features,
+        layout.view_groups,
+        if layout.light_lists { layout.beam_groups } else { 0 },
+    );
     let finish_groups = [tiles(w), tiles(h), 1];
     let texels_per_plane = (layout.grid.count() + view.rect.width() as u64 * view.rect.height() as u64).max(1);
     let diagnoses_light = matches!(
@@ -502,7 +547,6 @@ pub(super) fn run(
         planes_run - 1
     };
     let bar = progress_bar(req.progress, dispatches as u64);
-    let tile_groups = tile_groups(&features, layout.view_groups);
     let mut gpu_ms = lbm_light.as_ref().map_or(0.0, |l| l.stats.gpu_ms);
     let mut plane = 1u32;
     let mut rec = Some(rec);
@@ -530,7 +574,14 @@ pub(super) fn run(
             let immediates = push(plane);
             let p = bytemuck::bytes_of(&immediates);
             let window = windows[plane as usize][3];
-            if plane < view.planes && window > 0 {
+            if plane < view.planes && layout.light_lists {
+                // The listed tiles, then those at the edge of the stepped ones (two lists
+                // per plane parity).
+                for (list, pass) in [(0, 5), (1, 6)] {
+                    let offset = ((plane as u64 % 2) * 2 + list) * 12;
+                    r.dispatch_indirect(&pipelines[pass], &sets[pass], p, light_args, offset)?;
+                }
+            } else if plane < view.planes && window > 0 {
                 r.dispatch(&pipelines[1], &sets[1], p, groups(window))?;
             }
             if !diagnoses_light {
@@ -541,7 +592,11 @@ pub(super) fn run(
                     r.dispatch(&pipelines[2], &sets[2], p, groups(layout.view_groups))?;
                 }
             }
-            // Clears the ring for the next plane's deposits and lists its view tiles.
+            // Clears the ring for the next plane's deposits and lists its view tiles (and its
+            // light tiles, from this plane's beams).
+            if layout.light_lists {
+                r.compute_to_compute();
+            }
             r.dispatch(&pipelines[3], &sets[3], p, groups(tile_groups))?;
             r.compute_to_indirect();
             plane += 1;
