@@ -11,9 +11,7 @@ use super::plane_light::{self, PlaneSettings};
 use super::plane_tests::{tf, volume};
 use super::shading::{cook_torrance, fresnel_dielectric};
 use super::{render, ReferenceSettings};
-use crate::scene::{
-    Camera, ClipPlane, Environment, Light, Projection, Quality, Scene, Shading, Toggle, TransferSource, VolumeSource,
-};
+use crate::scene::{ClipPlane, Environment, Quality, Scene, Toggle, VolumeSource};
 use crate::scene::{PreparedScene, RenderedImage};
 use crate::transfer::{ColorRamp, Curve, TransferFunctions};
 use crate::volume::Volume;
@@ -21,27 +19,9 @@ use crate::volume::Volume;
 /// Orthographic, head-on, the view spanning the volume's bounding sphere; light along the view
 /// axis from behind the viewer, hard; a constant background.
 fn scene(tf: &TransferFunctions, background: [f32; 3]) -> Scene {
-    Scene {
-        volume: VolumeSource::builtin("test", 0),
-        eta_volume: None,
-        window: Some([0.0, 1.0]),
-        transfer: TransferSource::Inline(tf.clone()),
-        camera: Camera {
-            yaw_deg: 0.0,
-            pitch_deg: 0.0,
-            projection: Projection::Orthographic,
-            ..Camera::default()
-        },
-        light: Light {
-            polar_deg: 0.0,
-            softness: 0.0,
-            ..Light::default()
-        },
-        shading: Shading::default(),
-        clip: None,
-        environment: Environment::Color { color: background },
-        quality: Quality::default(),
-    }
+    let mut scene = Scene::head_on("test", tf, 1.0, Quality::default());
+    scene.environment = Environment::Color { color: background };
+    scene
 }
 
 fn prepared(scene: Scene, vol: Volume, tf: TransferFunctions) -> PreparedScene {
