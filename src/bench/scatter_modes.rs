@@ -384,58 +384,43 @@ pub fn markdown(rows: &[ModeRow], plan: &ModesPlan, device: &str) -> String {
         }
         k
     };
-    let find = |b: f32, d: f64, v: &ModeVariant| {
-        rows.iter()
-            .find(|r| r.b == b && (r.depth - d).abs() < 1e-9 && &r.variant == v)
-    };
-    header(&mut md, "Width (voxels) and its ratio to the Monte Carlo's:");
-    for &(b, d) in &keys {
-        let Some(mc) = rows.iter().find(|r| r.b == b && (r.depth - d).abs() < 1e-9) else {
-            continue;
-        };
-        let _ = write!(md, "| {b} | {d:.1} | {:.2} ± {:.2} |", mc.mc_width, mc.mc_width_error);
-        for v in &plan.variants {
-            match find(b, d, v) {
-                Some(r) => {
-                    let _ = write!(md, " {:.2} ({:.2}) |", r.width, r.width / r.mc_width);
+    // One row per (b, depth): the Monte Carlo's cell, then each variant's (empty where it has
+    // no row there).
+    let table = |md: &mut String, title: &str, mc: &dyn Fn(&ModeRow) -> String, cell: &dyn Fn(&ModeRow) -> String| {
+        header(md, title);
+        for &(b, d) in &keys {
+            let at = |r: &&ModeRow| r.b == b && (r.depth - d).abs() < 1e-9;
+            let first = rows.iter().find(at).expect("the keys come from the rows");
+            let _ = write!(md, "| {b} | {d:.1} |{}|", mc(first));
+            for v in &plan.variants {
+                match rows.iter().filter(at).find(|r| &r.variant == v) {
+                    Some(r) => {
+                        let _ = write!(md, " {} |", cell(r));
+                    }
+                    None => md.push_str(" |"),
                 }
-                None => md.push_str(" |"),
             }
+            let _ = writeln!(md);
         }
-        let _ = writeln!(md);
-    }
-    header(
+    };
+    table(
+        &mut md,
+        "Width (voxels) and its ratio to the Monte Carlo's:",
+        &|r| format!(" {:.2} ± {:.2} ", r.mc_width, r.mc_width_error),
+        &|r| format!("{:.2} ({:.2})", r.width, r.width / r.mc_width),
+    );
+    table(
         &mut md,
         "RMS radius √⟨r²⟩ at S (voxels; no subtraction, both beams from the hole) and its ratio to the Monte Carlo's:",
+        &|r| format!(" {:.2} ", r.mc_rms_radius),
+        &|r| format!("{:.2} ({:.2})", r.rms_radius, r.rms_radius / r.mc_rms_radius),
     );
-    for &(b, d) in &keys {
-        let Some(mc) = rows.iter().find(|r| r.b == b && (r.depth - d).abs() < 1e-9) else {
-            continue;
-        };
-        let _ = write!(md, "| {b} | {d:.1} | {:.2} |", mc.mc_rms_radius);
-        for v in &plan.variants {
-            match find(b, d, v) {
-                Some(r) => {
-                    let _ = write!(md, " {:.2} ({:.2}) |", r.rms_radius, r.rms_radius / r.mc_rms_radius);
-                }
-                None => md.push_str(" |"),
-            }
-        }
-        let _ = writeln!(md);
-    }
-    header(&mut md, "Radial profile's shape, relative L1 against the Monte Carlo's (in parentheses: the power in the window relative to the first plane's, GPU / MC):");
-    for &(b, d) in &keys {
-        let _ = write!(md, "| {b} | {d:.1} | |");
-        for v in &plan.variants {
-            match find(b, d, v) {
-                Some(r) => {
-                    let _ = write!(md, " {:.3} ({:.2}) |", r.profile_l1, r.power_ratio);
-                }
-                None => md.push_str(" |"),
-            }
-        }
-        let _ = writeln!(md);
-    }
+    table(
+        &mut md,
+        "Radial profile's shape, relative L1 against the Monte Carlo's (in parentheses: the power in the window relative to the first plane's, GPU / MC):",
+        &|_| " ".to_string(),
+        &|r| format!("{:.3} ({:.2})", r.profile_l1, r.power_ratio),
+    );
     let _ = writeln!(
         md,
         "\nA width of 0 means the mean r² did not grow from the first plane: in lbm the lattice's glow \
