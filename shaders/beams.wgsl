@@ -63,7 +63,8 @@ fn load_beam(index: u32, half: u32, z: f32) -> Beam {
 // ---------------------------------------------------------------------------------------
 // Light tiles listed per plane (`list_light_tile`, run by `tiles_main` in sweep.wgsl): a tile
 // of beams is stepped only from shortly before one of its beams (or a neighbouring tile's)
-// comes within a margin of the volume's box until none of them can any more. Outside the box nothing attenuates or
+// comes within a margin of a cell where particles absorb or show or η changes
+// (`occupancy.rs`) until none of them can any more. Outside those cells nothing attenuates or
 // bends a beam, so a tile not yet stepped holds the beams' initial state carried straight,
 // and one no longer stepped keeps the state of its last plane, from where it is carried
 // straight as well. The margin covers what the view reads around a sample (the deposits'
@@ -180,9 +181,10 @@ fn in_light_window(t: vec2<u32>, k: u32) -> bool {
 }
 
 // Lists light tile t for plane k (>= 1) if its beams are to be stepped there: from the plane
-// its beams or a neighbouring tile's may come within the margin of the volume's box
-// (`light_start`), until neither it nor a neighbour has a beam left that can come within it
-// (`light_alive`, from plane k-1's step) or it leaves the window; then never again
+// its beams or a neighbouring tile's may come within the margin of a cell where the light
+// can change (`light_start`), until neither it nor a neighbour has a beam left that can come
+// within it (`light_start.z`, or `light_alive` from plane k-1's step) or it leaves the window;
+// then never again
 // (`light_end`). A tile keeps being stepped while a neighbour is, so
 // that the beams near the box read their neighbours' footprints and light exactly as with
 // every beam stepped.
@@ -207,9 +209,10 @@ fn list_light_tile(t: u32, k: u32) {
             if (q.x >= 0 && q.y >= 0 && q.x < i32(tx) && u32(q.y) * tx + u32(q.x) < n) {
                 let u = u32(q.y) * tx + u32(q.x);
                 let s = light_start[u];
-                // Not finished: its beams are still to come near the box, or one that was
-                // stepped on plane k-1 can still come within the margin.
-                if (s.x != NEVER && (s.y >= k || atomicLoad(&light_alive[u]) >= k - 1u)) {
+                // Not finished: its beams are still to come near an occupied cell, or one
+                // that was stepped on plane k-1 can still come within the margin (without
+                // refraction s.z, the last plane of its straight beams; with it `light_alive`).
+                if (s.x != NEVER && (s.y >= k || max(atomicLoad(&light_alive[u]), s.z) >= k - 1u)) {
                     stepped = true;
                 }
                 // Stepped on plane k-1 (an end written meanwhile for another tile is k).
@@ -730,15 +733,9 @@ fn beams_step(ij: vec2<u32>, k: u32, tile: u32, mode: u32) {
         }
     }
     store_beam(index, k % 2u, k, b);
-    if (mode != LIGHT_WINDOW) {
-        // Without refraction the view looks the light up in the cells (within the margin).
-        var d = P.light_dir.xyz;
-        var reach = 0.0;
-        if (REFRACTION) {
-            d = light_direction(b.v);
-            reach = deposit_reach(b.pos, du, dv);
-        }
-        if (reaches_box(b.pos, d, reach)) {
+    if (REFRACTION && mode != LIGHT_WINDOW) {
+        // A bent beam's end is found here; a straight one's on the CPU (`light_start.z`).
+        if (reaches_box(b.pos, light_direction(b.v), deposit_reach(b.pos, du, dv))) {
             atomicStore(&light_alive[tile], k);
         }
     }

@@ -164,14 +164,16 @@ struct Immediates {
 @group(0) @binding(27) var<storage, read_write> beam_scatter: array<vec4<f32>>;
 
 // Beams with light tiles listed per plane (`light_tiles_listed`), per tile of the light grid:
-// the first plane on which one of its beams, carried straight, is within the margin of the
-// volume's box (x; NEVER if none) and the smallest of those over it and its eight neighbours
-// (y: the plane from which it is stepped), computed on the CPU; the plane from which it is no
-// longer stepped (NEVER while it is); the last plane on which one of its beams could still
-// come within the margin; per plane parity two lists of the tiles a plane steps (LIGHT_LISTED
-// and LIGHT_EDGE in beams.wgsl), and their indirect dispatch arguments (x, y, z; x counts the
-// tiles).
-@group(0) @binding(28) var<storage, read> light_start: array<vec2<u32>>;
+// computed on the CPU (`light_tiles::spans`), the first plane on which one of its beams,
+// carried straight, is within the margin of a cell where the light can change (x; NEVER if
+// none), the smallest of those over it and its eight neighbours (y: the plane from which it is
+// stepped) and, without refraction, the last plane on which one of its beams is within that
+// margin (z; 0 with refraction); the plane from which it is no longer stepped (NEVER while it
+// is); with refraction, the last plane on which one of its bent beams could still come within
+// the margin of the volume's box; per plane parity two lists of the tiles a plane steps
+// (LIGHT_LISTED and LIGHT_EDGE in beams.wgsl), and their indirect dispatch arguments (x, y, z;
+// x counts the tiles).
+@group(0) @binding(28) var<storage, read> light_start: array<vec4<u32>>;
 @group(0) @binding(29) var<storage, read_write> light_end: array<atomic<u32>>;
 @group(0) @binding(30) var<storage, read_write> light_alive: array<atomic<u32>>;
 @group(0) @binding(31) var<storage, read_write> light_lists: array<u32>;

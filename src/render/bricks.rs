@@ -33,7 +33,7 @@ fn range_of<const N: usize>(points: &[[f32; N]], k: usize, a: f32, b: f32, eval:
 }
 
 /// Whether values in [a, b] (transfer-function domain) absorb or show anything.
-fn visible(tf: &TransferFunctions, a: f32, b: f32) -> bool {
+pub(super) fn visible(tf: &TransferFunctions, a: f32, b: f32) -> bool {
     let (_, alpha) = range_of(&tf.opacity.points, 1, a, b, |x| tf.opacity.eval(x));
     if alpha > 0.0 {
         return true;

@@ -4,6 +4,9 @@
 //! attenuates or bends a beam, so tiles far from it need not be stepped: on lavapipe only
 //! fewer workgroups save time (a CPU driver runs every branch a workgroup takes).
 
+use rayon::prelude::*;
+
+use super::occupancy::Occupancy;
 use super::shaders::Pass;
 use super::state::ACC_LEVELS;
 use crate::scene::view::{BeamGrid, ViewSetup};
@@ -46,46 +49,56 @@ pub fn texture_scale(view: &ViewSetup) -> [f32; 3] {
 }
 
 /// Per light tile: the first plane (at least 1) on which one of its beams, carried straight
-/// along the light from plane 0, is within the texture margin `margin` of the volume's box
-/// (NEVER if on none), and the smallest of those over the tile and its eight neighbours (the
-/// plane from which `light_tiles_main` steps it). Beams bend only inside the box, so before
-/// that plane every beam of the tile is still on its straight line.
-pub fn starts(view: &ViewSetup, grid: &BeamGrid, light: glam::Vec3, margin: [f32; 3]) -> Vec<[u32; 2]> {
+/// along the light from plane 0, is within the texture margin `margin` of an occupied cell
+/// (NEVER if on none); the smallest of those over the tile and its eight neighbours (the
+/// plane from which `light_tiles_main` steps it); and the last plane on which one of its
+/// beams is within the margin (0 if none). Beams bend only in occupied cells, so before the
+/// first of those planes every beam of the tile is still on its straight line, and without
+/// refraction after the last its light no longer changes.
+pub fn spans(
+    view: &ViewSetup,
+    grid: &BeamGrid,
+    light: glam::Vec3,
+    margin: [f32; 3],
+    occupancy: &[Occupancy],
+) -> Vec<[u32; 4]> {
     let (tx, ty) = (
         grid.width.div_ceil(Pass::TILE) as usize,
         grid.height.div_ceil(Pass::TILE) as usize,
     );
-    let mut raw = vec![NEVER; tx * ty];
+    let grown: Vec<_> = occupancy.iter().map(|o| o.grown(margin)).collect();
     let volume_from_view = view.volume_from_view();
     // Texture coordinates per unit of depth along the light.
     let dq = volume_from_view.transform_vector3(light / light.z);
     let span = view.plane_z(view.planes - 1) - view.z_first;
     let [fx, fy, cx, cy] = view.projection;
-    for j in 0..grid.height {
-        for i in 0..grid.width {
-            // The beam's cell centre on plane 0 (pixel-edge coordinates), as `beams_init`.
-            let e = glam::Vec2::new(grid.x0, grid.y0) + (glam::Vec2::new(i as f32, j as f32) + 0.5) * grid.stride;
-            let ndc = glam::Vec2::new((e.x - cx) / fx, (e.y - cy) / fy);
-            let scale = if view.perspective { view.z_first } else { 1.0 };
-            let q0 = volume_from_view.transform_point3(glam::Vec3::new(ndc.x * scale, ndc.y * scale, view.z_first));
-            let (mut s0, mut s1) = (0.0f32, span);
-            for a in 0..3 {
-                let (lo, hi) = (-margin[a], 1.0 + margin[a]);
-                if dq[a].abs() < 1e-20 {
-                    if q0[a] < lo || q0[a] > hi {
-                        s1 = -1.0;
+    // Per row of beams: the first and last plane of each tile it crosses.
+    let rows: Vec<Vec<(u32, u32)>> = (0..grid.height)
+        .into_par_iter()
+        .map(|j| {
+            let mut row = vec![(NEVER, 0u32); tx];
+            for i in 0..grid.width {
+                // The beam's cell centre on plane 0 (pixel-edge coordinates), as `beams_init`.
+                let e = glam::Vec2::new(grid.x0, grid.y0) + (glam::Vec2::new(i as f32, j as f32) + 0.5) * grid.stride;
+                let ndc = glam::Vec2::new((e.x - cx) / fx, (e.y - cy) / fy);
+                let scale = if view.perspective { view.z_first } else { 1.0 };
+                let q0 = volume_from_view.transform_point3(glam::Vec3::new(ndc.x * scale, ndc.y * scale, view.z_first));
+                for g in &grown {
+                    if let Some((s0, s1)) = g.span(q0, dq, 0.0, span) {
+                        let t = &mut row[i as usize / Pass::TILE as usize];
+                        t.0 = t.0.min(((s0 / view.step).floor() as u32).max(1));
+                        t.1 = t.1.max((s1 / view.step).ceil() as u32);
                     }
-                } else {
-                    let (ta, tb) = ((lo - q0[a]) / dq[a], (hi - q0[a]) / dq[a]);
-                    s0 = s0.max(ta.min(tb));
-                    s1 = s1.min(ta.max(tb));
                 }
             }
-            if s0 <= s1 {
-                let plane = ((s0 / view.step).floor() as u32).max(1);
-                let t = (j as usize / Pass::TILE as usize) * tx + i as usize / Pass::TILE as usize;
-                raw[t] = raw[t].min(plane);
-            }
+            row
+        })
+        .collect();
+    let mut raw = vec![(NEVER, 0u32); tx * ty];
+    for (j, row) in rows.iter().enumerate() {
+        for (x, &(first, last)) in row.iter().enumerate() {
+            let t = &mut raw[(j / Pass::TILE as usize) * tx + x];
+            *t = (t.0.min(first), t.1.max(last));
         }
     }
     (0..tx * ty)
@@ -94,10 +107,10 @@ pub fn starts(view: &ViewSetup, grid: &BeamGrid, light: glam::Vec3, margin: [f32
             let mut start = NEVER;
             for v in y.saturating_sub(1)..(y + 2).min(ty) {
                 for u in x.saturating_sub(1)..(x + 2).min(tx) {
-                    start = start.min(raw[v * tx + u]);
+                    start = start.min(raw[v * tx + u].0);
                 }
             }
-            [raw[t], start]
+            [raw[t].0, start, raw[t].1, 0]
         })
         .collect()
 }
@@ -105,49 +118,76 @@ pub fn starts(view: &ViewSetup, grid: &BeamGrid, light: glam::Vec3, margin: [f32
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::render::occupancy::CELL;
     use crate::scene::builtin;
     use crate::scene::view::light_direction;
 
-    /// Every beam is outside the margin on the planes before its tile starts: checked plane by
-    /// plane along each beam's straight line, independently of the slab test, with a light
-    /// at an angle so that tiles start on different planes.
+    /// Every beam is outside the margin of the occupied cells on the planes before its tile
+    /// starts and after its last plane: checked plane by plane along each beam's straight
+    /// line against each occupied cell's box grown by the margin, independently of the
+    /// traversal, with a light at an angle so that tiles start and end on different planes.
     #[test]
-    fn no_beam_comes_near_the_box_before_its_tile_starts() {
+    fn no_beam_comes_near_an_occupied_cell_outside_its_tile_span() {
         let mut scene = builtin("ball-lens").unwrap().scene;
         scene.light.polar_deg = 35.0;
         scene.light.azimuth_deg = -40.0;
-        let view = ViewSetup::new(&scene, [64, 40, 64], [1.0; 3], 48, 48).unwrap();
+        let voxels = [64, 40, 64];
+        let view = ViewSetup::new(&scene, voxels, [1.0; 3], 48, 48).unwrap();
         let light = light_direction(&scene.light);
         let grid = view.beam_grid(light, 1.0, false);
         let scale = texture_scale(&view);
         let margin = scale.map(|s| s * 2.0 * view.step);
-        let starts = starts(&view, &grid, light, margin);
+        // A few occupied cells: one inside, one at a corner, one at a face.
+        let cells = voxels.map(|d| d.div_ceil(CELL));
+        let mut occupancy = Occupancy {
+            flags: vec![false; cells[0] * cells[1] * cells[2]],
+            cells,
+            voxels,
+        };
+        let occupied = [[7, 5, 9], [0, 0, 0], [15, 3, 4]];
+        for c in occupied {
+            occupancy.flags[(c[2] * cells[1] + c[1]) * cells[0] + c[0]] = true;
+        }
+        let near = |q: glam::Vec3| {
+            occupied.iter().any(|c| {
+                (0..3).all(|a| {
+                    let lo = (c[a] * CELL) as f32 / voxels[a] as f32 - margin[a];
+                    let hi = ((c[a] + 1) * CELL) as f32 / voxels[a] as f32 + margin[a];
+                    q[a] >= lo && q[a] <= hi
+                })
+            })
+        };
+        let spans = spans(&view, &grid, light, margin, &[occupancy]);
         let tx = grid.width.div_ceil(Pass::TILE) as usize;
         let volume_from_view = view.volume_from_view();
-        let mut later = 0;
+        let (mut later, mut earlier) = (0, 0);
         for j in 0..grid.height {
             for i in 0..grid.width {
                 let e = glam::Vec2::new(grid.x0, grid.y0) + (glam::Vec2::new(i as f32, j as f32) + 0.5) * grid.stride;
                 let p0 = view.point_at(e, view.z_first);
-                let first = (0..view.planes).find(|&k| {
-                    let p = p0 + light * ((view.plane_z(k) - view.z_first) / light.z);
-                    let q = volume_from_view.transform_point3(p);
-                    (0..3).all(|a| q[a] >= -margin[a] && q[a] <= 1.0 + margin[a])
-                });
                 let t = (j / Pass::TILE) as usize * tx + (i / Pass::TILE) as usize;
-                if let Some(first) = first {
-                    assert!(
-                        starts[t][0] <= first.max(1),
-                        "beam ({i}, {j}) is near the box on plane {first}, its tile starts on {:?}",
-                        starts[t]
-                    );
-                    assert!(starts[t][1] <= starts[t][0]);
+                for k in 0..view.planes {
+                    let p = p0 + light * ((view.plane_z(k) - view.z_first) / light.z);
+                    if near(volume_from_view.transform_point3(p)) {
+                        assert!(
+                            spans[t][0] <= k.max(1) && spans[t][2] >= k,
+                            "beam ({i}, {j}) is near a cell on plane {k}, its tile spans {:?}",
+                            spans[t]
+                        );
+                    }
                 }
-                if starts[t][1] > 1 {
+                assert!(spans[t][1] <= spans[t][0]);
+                if spans[t][1] > 1 && spans[t][1] != NEVER {
                     later += 1;
+                }
+                if spans[t][0] != NEVER && spans[t][2] + 1 < view.planes {
+                    earlier += 1;
                 }
             }
         }
-        assert!(later > 0, "every tile starts on plane 1: the test shows nothing");
+        assert!(
+            later > 0 && earlier > 0,
+            "every tile spans all planes: the test shows nothing"
+        );
     }
 }

@@ -8,6 +8,7 @@ mod features;
 pub mod gradient;
 pub mod lbm;
 mod light_tiles;
+mod occupancy;
 mod params;
 pub mod safeguards;
 pub mod shaders;

@@ -391,15 +391,6 @@ pub(super) fn run(
         && matches!(req.debug_view, DebugView::Image | DebugView::Medium)
         && super::bricks::clear_outside(&prepared.tf)
         && layout.beam_groups <= MAX_GROUPS_PER_ROW;
-    let (light_box, light_margin, starts) = if layout.light_lists {
-        let (every, straight) = light_tiles::margins(&view, &grid, scene.quality.sample_distance, features.refraction);
-        let scale = light_tiles::texture_scale(&view);
-        let starts = light_tiles::starts(&view, &grid, light, scale.map(|s| s * straight));
-        ([scale[0], scale[1], scale[2], 1.0], every, starts)
-    } else {
-        ([0.0; 4], 0.0, vec![[NEVER; 2]; 2])
-    };
-
     let window = prepared.window();
     // Scene textures are kept between renders while what they hold is unchanged (an
     // interactive view changes mostly the camera and light).
@@ -426,6 +417,25 @@ pub(super) fn run(
     let cached = cache
         .as_ref()
         .ok_or_else(|| RenderError::Setup("internal: scene textures missing".into()))?;
+    let (light_box, light_margin, spans) = if layout.light_lists {
+        let (every, straight) = light_tiles::margins(&view, &grid, scene.quality.sample_distance, features.refraction);
+        let scale = light_tiles::texture_scale(&view);
+        let mut spans = light_tiles::spans(
+            &view,
+            &grid,
+            light,
+            scale.map(|s| s * straight),
+            &cached.textures.occupancy,
+        );
+        if features.refraction {
+            // Bent beams end where the device finds they can no longer reach the box
+            // (`light_alive`); the straight lines' last planes do not bound them.
+            spans.iter_mut().for_each(|s| s[2] = 0);
+        }
+        ([scale[0], scale[1], scale[2], 1.0], every, spans)
+    } else {
+        ([0.0; 4], 0.0, vec![[NEVER, NEVER, 0, 0]; 2])
+    };
     let lbm_light = match lbm {
         Some(p) => Some(super::lbm::solve_for_scene(
             ctx,
@@ -459,7 +469,7 @@ pub(super) fn run(
     )?;
     let state = State::new(ctx, &view, &layout, &features, precision)?;
     let window_buffer = Buffer::new_storage_from(ctx, "light windows", bytemuck::cast_slice(&windows))?;
-    let start_buffer = Buffer::new_storage_from(ctx, "light tile starts", bytemuck::cast_slice(&starts))?;
+    let start_buffer = Buffer::new_storage_from(ctx, "light tile spans", bytemuck::cast_slice(&spans))?;
     // ω and g per data value for the spread mode (a placeholder entry pair otherwise).
     let table = if features.scatter {
         crate::transfer::scattering::scattering_table(&prepared.tf)

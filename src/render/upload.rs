@@ -12,6 +12,7 @@ use crate::volume::Volume;
 
 use super::environment::EnvMap;
 use super::gradient::gradient_volume;
+use super::occupancy::Occupancy;
 
 type Levels = Vec<(u64, [u32; 3])>;
 
@@ -30,6 +31,9 @@ pub struct SceneTextures {
     /// Which 8³ bricks absorb or show (`bricks.rs`), one u32 each.
     pub bricks: Buffer,
     pub brick_dims: [u32; 3],
+    /// Where the light can change, on the CPU (`occupancy.rs`): the cells where particles
+    /// absorb or show, and with refraction those where η changes.
+    pub occupancy: Vec<Occupancy>,
 }
 
 /// The contents of freshly created [`SceneTextures`], staged for [`SceneTextures::record_upload`].
@@ -96,6 +100,7 @@ impl SceneTextures {
         let vol_img = volume_image(ctx, "volume", volume)?;
         let samples = volume.normalized_u16(window);
         let occupancy = super::bricks::bricks(&samples, volume.dims, tf);
+        let mut cells = vec![Occupancy::visible(&samples, volume.dims, tf)];
         let bytes: Vec<u8> = bytemuck::cast_slice(&samples).to_vec();
         uploads.push((images.len(), vec![(staging.push(&bytes), vol_img.desc.extent)]));
         images.push(vol_img);
@@ -109,6 +114,7 @@ impl SceneTextures {
                     ),
                     None => (volume.dims, gradient_volume(&samples, volume.dims, &tf.eta, scheme)),
                 };
+                cells.push(Occupancy::refracting(&g, dims));
                 ([dims[0] as u32, dims[1] as u32, dims[2] as u32], g)
             }
             None => ([1, 1, 1], vec![[half::f16::ZERO; 4]]),
@@ -217,6 +223,7 @@ impl SceneTextures {
             env_sampler,
             bricks,
             brick_dims: occupancy.dims,
+            occupancy: cells,
         };
         let pending = PendingUpload {
             staging: Arc::new(buffer),

@@ -1,0 +1,283 @@
+//! Which cells of 4³ voxels can change the light: where particles absorb or show (the value
+//! range in the cell and one voxel around it, as the bricks) or where η changes (a gradient
+//! volume texel within a voxel of the cell is not zero). The light tiles of the beams start
+//! shortly before their first beam comes near such a cell and, without refraction, end
+//! shortly after their last beam has passed the last one (`light_tiles::spans`): a beam's
+//! light changes nowhere else. Kept on the CPU; a finer grid than the bricks, because the
+//! margin around it is added on top.
+
+use rayon::prelude::*;
+
+use crate::transfer::TransferFunctions;
+
+/// Voxels per cell edge.
+pub const CELL: usize = 4;
+
+/// Per cell (x fastest) whether something in it or within a voxel of it changes the light;
+/// the grid's cells along each axis and the voxels it covers.
+#[derive(Clone, Debug)]
+pub struct Occupancy {
+    pub flags: Vec<bool>,
+    pub cells: [usize; 3],
+    pub voxels: [usize; 3],
+}
+
+/// The voxel range of cell `i` along an axis of `n` voxels, one voxel wider on each side.
+fn reach(i: usize, n: usize) -> std::ops::Range<usize> {
+    (i * CELL).saturating_sub(1)..((i + 1) * CELL + 1).min(n)
+}
+
+impl Occupancy {
+    fn build(voxels: [usize; 3], cell: impl Fn([usize; 3]) -> bool + Sync) -> Occupancy {
+        let cells = voxels.map(|d| d.div_ceil(CELL).max(1));
+        let flags = (0..cells[0] * cells[1] * cells[2])
+            .into_par_iter()
+            .map(|c| cell([c % cells[0], (c / cells[0]) % cells[1], c / (cells[0] * cells[1])]))
+            .collect();
+        Occupancy { flags, cells, voxels }
+    }
+
+    /// The cells whose particles absorb or show (16-bit samples, 0..65535 ↦ [0, 1]); cells at
+    /// the volume's faces also reach the value 0 outside it.
+    pub fn visible(samples: &[u16], dims: [usize; 3], tf: &TransferFunctions) -> Occupancy {
+        let [nx, ny, nz] = dims;
+        Self::build(dims, |[cx, cy, cz]| {
+            let (mut lo, mut hi) = (u16::MAX, 0u16);
+            for z in reach(cz, nz) {
+                for y in reach(cy, ny) {
+                    let row = (z * ny + y) * nx;
+                    for &v in &samples[row + reach(cx, nx).start..row + reach(cx, nx).end] {
+                        lo = lo.min(v);
+                        hi = hi.max(v);
+                    }
+                }
+            }
+            let face = |i: usize, n: usize| i == 0 || (i + 1) * CELL >= n;
+            if face(cx, nx) || face(cy, ny) || face(cz, nz) {
+                lo = 0;
+            }
+            lo <= hi && super::bricks::visible(tf, lo as f32 / 65535.0, hi as f32 / 65535.0)
+        })
+    }
+
+    /// The cells where η changes: a texel of the gradient volume (`gradient.rs`: ∇η in xyz)
+    /// within a voxel of the cell has a gradient other than zero.
+    pub fn refracting(texels: &[[half::f16; 4]], dims: [usize; 3]) -> Occupancy {
+        let [nx, ny, nz] = dims;
+        Self::build(dims, |[cx, cy, cz]| {
+            reach(cz, nz).any(|z| {
+                reach(cy, ny).any(|y| {
+                    let row = (z * ny + y) * nx;
+                    texels[row + reach(cx, nx).start..row + reach(cx, nx).end]
+                        .iter()
+                        .any(|t| t[..3].iter().any(|g| g.to_f32() != 0.0))
+                })
+            })
+        })
+    }
+
+    fn at(&self, c: [usize; 3]) -> bool {
+        self.flags[(c[2] * self.cells[1] + c[1]) * self.cells[0] + c[0]]
+    }
+
+    /// The grid with every occupied cell grown by `margin` (texture units along each axis,
+    /// the volume's box being [0, 1]³), for [`Grown::span`].
+    pub fn grown(&self, margin: [f32; 3]) -> Grown {
+        // Cells of grid per texture unit along each axis.
+        let per_unit = [0, 1, 2].map(|a| self.voxels[a] as f32 / CELL as f32);
+        let d = [0, 1, 2].map(|a| (margin[a] * per_unit[a]).max(0.0).ceil() as usize);
+        let size = [0, 1, 2].map(|a| self.cells[a] + 2 * d[a]);
+        // Separable: grow along x, then y, then z (a box of (2d+1)³ cells about each).
+        let mut flags = vec![false; size[0] * size[1] * size[2]];
+        let index = |c: [usize; 3]| (c[2] * size[1] + c[1]) * size[0] + c[0];
+        for z in 0..self.cells[2] {
+            for y in 0..self.cells[1] {
+                for x in 0..self.cells[0] {
+                    if self.at([x, y, z]) {
+                        for gx in x..=x + 2 * d[0] {
+                            flags[index([gx, y + d[1], z + d[2]])] = true;
+                        }
+                    }
+                }
+            }
+        }
+        for axis in [1, 2] {
+            let mut next = flags.clone();
+            for z in 0..size[2] {
+                for y in 0..size[1] {
+                    for x in 0..size[0] {
+                        let c = [x, y, z];
+                        if flags[index(c)] {
+                            let mut g = c;
+                            for k in c[axis].saturating_sub(d[axis])..(c[axis] + d[axis] + 1).min(size[axis]) {
+                                g[axis] = k;
+                                next[index(g)] = true;
+                            }
+                        }
+                    }
+                }
+            }
+            flags = next;
+        }
+        Grown {
+            flags,
+            size,
+            offset: d,
+            per_unit,
+        }
+    }
+}
+
+/// An [`Occupancy`] grown by a margin, padded by the growth on every side.
+pub struct Grown {
+    flags: Vec<bool>,
+    size: [usize; 3],
+    /// Cells of padding before the volume's cell 0 along each axis.
+    offset: [usize; 3],
+    per_unit: [f32; 3],
+}
+
+impl Grown {
+    /// The part of the line q0 + dq·s, s in [s0, s1] (texture coordinates), that passes
+    /// through occupied cells: from where it enters the first to where it leaves the last
+    /// (cells traversed exactly, Amanatides and Woo), or None.
+    pub fn span(&self, q0: glam::Vec3, dq: glam::Vec3, s0: f32, s1: f32) -> Option<(f32, f32)> {
+        // Grid coordinates: cell c spans [c, c + 1) along each axis.
+        let a = [0, 1, 2].map(|i| q0[i] * self.per_unit[i] + self.offset[i] as f32);
+        let b = [0, 1, 2].map(|i| dq[i] * self.per_unit[i]);
+        // Clip the segment to the grid's box.
+        let (mut t0, mut t1) = (s0, s1);
+        for i in 0..3 {
+            let hi = self.size[i] as f32;
+            if b[i].abs() < 1e-20 {
+                if a[i] < 0.0 || a[i] >= hi {
+                    return None;
+                }
+            } else {
+                let (ta, tb) = ((0.0 - a[i]) / b[i], (hi - a[i]) / b[i]);
+                t0 = t0.max(ta.min(tb));
+                t1 = t1.min(ta.max(tb));
+            }
+        }
+        if t0 > t1 {
+            return None;
+        }
+        let mut cell = [0usize; 3];
+        let mut step = [0isize; 3];
+        let mut next = [f32::INFINITY; 3];
+        let mut delta = [f32::INFINITY; 3];
+        for i in 0..3 {
+            let p = a[i] + b[i] * t0;
+            cell[i] = (p.floor().max(0.0) as usize).min(self.size[i] - 1);
+            if b[i] > 1e-20 {
+                step[i] = 1;
+                next[i] = (cell[i] as f32 + 1.0 - a[i]) / b[i];
+                delta[i] = 1.0 / b[i];
+            } else if b[i] < -1e-20 {
+                step[i] = -1;
+                next[i] = (cell[i] as f32 - a[i]) / b[i];
+                delta[i] = -1.0 / b[i];
+            }
+        }
+        let mut found: Option<(f32, f32)> = None;
+        let mut t = t0;
+        loop {
+            let axis = (0..3).min_by(|&i, &j| next[i].total_cmp(&next[j])).unwrap_or(0);
+            let leave = next[axis].min(t1);
+            if self.flags[(cell[2] * self.size[1] + cell[1]) * self.size[0] + cell[0]] {
+                found = Some((found.map_or(t, |f| f.0), leave));
+            }
+            if next[axis] >= t1 {
+                break;
+            }
+            t = next[axis];
+            let c = cell[axis] as isize + step[axis];
+            if c < 0 || c >= self.size[axis] as isize {
+                break;
+            }
+            cell[axis] = c as usize;
+            next[axis] += delta[axis];
+        }
+        found
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    /// One occupied cell in an 8³-cell grid: the span of lines through, beside and past it,
+    /// against the cell's box grown by the margin.
+    #[test]
+    fn a_line_finds_the_grown_cells_it_crosses() {
+        let voxels = [32, 32, 32];
+        let mut occ = Occupancy {
+            flags: vec![false; 8 * 8 * 8],
+            cells: [8, 8, 8],
+            voxels,
+        };
+        // Cell (3, 4, 5): texture [3/8, 4/8) × [4/8, 5/8) × [5/8, 6/8).
+        occ.flags[(5 * 8 + 4) * 8 + 3] = true;
+        // A margin of one and a half cells grows it by two cells each way.
+        let g = occ.grown([1.5 / 8.0; 3]);
+        // Along z through the cell's column: enters at z = 3/8, leaves at 8/8.
+        let q = Vec3::new(3.5 / 8.0, 4.5 / 8.0, 0.0);
+        let (s0, s1) = g.span(q, Vec3::Z, 0.0, 2.0).expect("crosses the cell");
+        assert!((s0 - 3.0 / 8.0).abs() < 1e-5 && (s1 - 1.0).abs() < 1e-5, "{s0} {s1}");
+        // The segment clipped on both ends.
+        let (s0, s1) = g.span(q, Vec3::Z, 0.5, 0.7).expect("inside");
+        assert!((s0 - 0.5).abs() < 1e-6 && (s1 - 0.7).abs() < 1e-6, "{s0} {s1}");
+        // Two cells to the side still hits (grown by two), three does not.
+        assert!(g
+            .span(Vec3::new(1.5 / 8.0, 4.5 / 8.0, 0.0), Vec3::Z, 0.0, 2.0)
+            .is_some());
+        assert!(g
+            .span(Vec3::new(-0.5 / 8.0, 4.5 / 8.0, 0.0), Vec3::Z, 0.0, 2.0)
+            .is_none());
+        // A diagonal line through the grown box's corner region.
+        let d = Vec3::new(1.0, 1.0, 1.0);
+        let hit = g.span(Vec3::new(0.0, 1.0 / 8.0, 2.0 / 8.0), d, 0.0, 1.0);
+        // Occupied cells grown: [1/8, 6/8) × [2/8, 7/8) × [3/8, 8/8); the line enters at
+        // s = 1/8 (y and z already inside from s = 1/8 and 1/8) and leaves at x = 6/8.
+        let (s0, s1) = hit.expect("diagonal");
+        assert!(
+            (s0 - 1.0 / 8.0).abs() < 1e-5 && (s1 - 6.0 / 8.0).abs() < 1e-5,
+            "{s0} {s1}"
+        );
+    }
+
+    #[test]
+    fn cells_occupy_where_particles_show_or_eta_changes() {
+        use crate::transfer::{ColorRamp, Curve};
+        let dims = [16, 16, 16];
+        let mut samples = vec![0u16; 16 * 16 * 16];
+        samples[(9 * 16 + 9) * 16 + 9] = 60000;
+        let tf = TransferFunctions {
+            name: None,
+            opacity: Curve {
+                points: vec![[0.0, 0.0], [0.5, 0.0], [0.6, 1.0]],
+            },
+            color: ColorRamp::constant([1.0; 3]),
+            eta: Curve::constant(1.0),
+            medium: ColorRamp {
+                points: vec![[0.0, 1.0, 1.0, 1.0]],
+            },
+            albedo: None,
+            anisotropy: None,
+        };
+        let v = Occupancy::visible(&samples, dims, &tf);
+        // Voxel 9 is in cell 2 and within a voxel of none other (cell 2 spans 8..12).
+        assert_eq!(v.cells, [4, 4, 4]);
+        assert_eq!(v.flags.iter().filter(|f| **f).count(), 1);
+        assert!(v.at([2, 2, 2]));
+        // Voxel 8 is within a voxel of cell 1 too.
+        let mut texels = vec![[half::f16::ZERO; 4]; 16 * 16 * 16];
+        texels[(8 * 16 + 9) * 16 + 9][0] = half::f16::from_f32(0.1);
+        // η itself (w) does not count, only its change.
+        texels[0][3] = half::f16::from_f32(0.5);
+        let r = Occupancy::refracting(&texels, dims);
+        assert_eq!(r.flags.iter().filter(|f| **f).count(), 2);
+        assert!(r.at([2, 2, 2]) && r.at([2, 2, 1]));
+    }
+}
