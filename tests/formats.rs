@@ -111,6 +111,40 @@ fn oversized_volume_is_downsampled_or_refused() {
     assert!(out.image.max_value() > 0.05, "the downsampled sphere is still visible");
 }
 
+/// The byte budget counts what the device holds: 2 bytes per voxel of the volume and, with
+/// refraction, 8 per voxel of the gradient volume (of the η volume when there is one, whose own
+/// samples are not uploaded).
+#[test]
+fn the_byte_budget_counts_the_gradient_volume_of_a_refracting_scene() {
+    let vol = common::sphere(48, 0.3, 1.0);
+    let clear = plain_tf(vec![[0.0, 0.0], [1.0, 0.5]], vec![[0.0, 1.0, 1.0, 1.0]]);
+    let mut glass = clear.clone();
+    glass.eta = caustica::transfer::Curve {
+        points: vec![[0.0, 1.0], [1.0, 1.5]],
+    };
+    let budget = 10 * 16 * 16 * 16;
+    // Without refraction 2 bytes per voxel: 20480 voxels fit, 27³.
+    let mut p = prepared(head_on_scene(&clear), vol.clone(), clear.clone());
+    assert_eq!(p.fit_to_device(1024, budget, true).unwrap(), Some([27, 27, 27]));
+    // With refraction 10: 16³.
+    let mut p = prepared(head_on_scene(&glass), vol.clone(), glass.clone());
+    assert_eq!(p.fit_to_device(1024, budget, true).unwrap(), Some([16, 16, 16]));
+    // 16³ with refraction fits exactly, and refraction switched off frees the gradient's share.
+    assert_eq!(p.fit_to_device(1024, budget, true).unwrap(), None);
+    let mut off = head_on_scene(&glass);
+    off.quality.refraction = caustica::scene::Toggle::Off;
+    let mut p = prepared(off, vol.clone(), glass.clone());
+    assert_eq!(p.fit_to_device(1024, budget, true).unwrap(), Some([27, 27, 27]));
+    // An η volume of its own: its gradient is counted at its dims, and both are resampled to
+    // the volume's new dims. A 16³ volume with a 48³ η volume needs 2·16³ + 8·48³ bytes.
+    let mut p = prepared(head_on_scene(&glass), common::sphere(16, 0.3, 1.0), glass.clone());
+    p.eta_volume = Some(std::sync::Arc::new(vol));
+    let err = p.fit_to_device(1024, budget, false).unwrap_err().to_string();
+    assert!(err.contains("exceeds"), "{err}");
+    assert_eq!(p.fit_to_device(1024, budget, true).unwrap(), Some([16, 16, 16]));
+    assert_eq!(p.eta_volume.as_ref().map(|e| e.dims), Some([16, 16, 16]));
+}
+
 #[test]
 fn time_series_scene_loads_the_selected_frame() {
     let dir = std::env::temp_dir().join(format!("caustica-formats-series-{}", std::process::id()));

@@ -1,7 +1,7 @@
 //! `Features`: what a scene needs the renderer to model. Each feature is an `override` constant
 //! in the shaders; a disabled feature is constant-folded away and its buffers are not allocated.
 
-use crate::scene::{Gradient, LightTransport, MultipleScattering, Precision, Projection, Scene, Toggle};
+use crate::scene::{Gradient, LightTransport, MultipleScattering, Precision, Projection, Scene};
 use crate::transfer::TransferFunctions;
 
 /// What one image needs. Derived from the scene ([`Features::for_scene`]).
@@ -64,12 +64,7 @@ impl DebugView {
 impl Features {
     pub fn for_scene(scene: &Scene, tf: &TransferFunctions) -> Self {
         let q = &scene.quality;
-        let refraction = match q.refraction {
-            Toggle::On => true,
-            Toggle::Off => false,
-            // An η volume goes through η_tf too: a constant η_tf refracts nothing either way.
-            Toggle::Auto => !tf.eta_is_constant(),
-        };
+        let refraction = q.refracts(tf);
         Features {
             refraction,
             medium: !tf.medium_is_white(),

@@ -132,7 +132,7 @@ impl PreparedScene {
     }
 
     /// Downsamples the volumes (and warns) when they exceed `max_dim` voxels along an axis or
-    /// `max_bytes` of 16-bit texture memory; with `allow` false that is an error instead.
+    /// `max_bytes` of volume texture memory; with `allow` false that is an error instead.
     /// Returns the new dims when the volume was downsampled.
     pub fn fit_to_device(
         &mut self,
@@ -140,12 +140,28 @@ impl PreparedScene {
         max_bytes: u64,
         allow: bool,
     ) -> Result<Option<[usize; 3]>, PrepareError> {
-        // Each volume texel is 16 bits; a second volume for η doubles that.
-        let textures = if self.eta_volume.is_some() { 2 } else { 1 };
-        let max_voxels = (max_bytes / (2 * textures)).min(usize::MAX as u64) as usize;
-        let Some(dims) = fitting_dims(self.volume.dims, max_dim as usize, max_voxels) else {
+        // What the device holds: the volume's 16-bit samples and, with refraction, an rgba16f
+        // gradient volume (8 bytes per voxel, `render::gradient`) of the η source, the η
+        // volume or else the volume itself; an η volume's own samples are not uploaded.
+        let refracts = self.scene.quality.refracts(&self.tf);
+        let voxels = |d: [usize; 3]| d.iter().map(|&n| n as u64).product::<u64>();
+        let gradient_dims = refracts.then(|| self.eta_volume.as_ref().map_or(self.volume.dims, |e| e.dims));
+        let bytes = 2 * voxels(self.volume.dims) + gradient_dims.map_or(0, |d| 8 * voxels(d));
+        let largest = self
+            .volume
+            .dims
+            .iter()
+            .chain(gradient_dims.iter().flatten())
+            .copied()
+            .max()
+            .unwrap_or(1);
+        if largest <= max_dim as usize && bytes <= max_bytes {
             return Ok(None);
-        };
+        }
+        // Downsampled, the η volume takes the volume's dims: 2 + 8 bytes per voxel then.
+        let per_voxel = if refracts { 10 } else { 2 };
+        let max_voxels = (max_bytes / per_voxel).min(usize::MAX as u64) as usize;
+        let dims = fitting_dims(self.volume.dims, max_dim as usize, max_voxels).unwrap_or(self.volume.dims);
         let what = format!(
             "the volume {} exceeds the device's limits ({max_dim} texels per axis, {} MiB for volume textures)",
             dims_text(&self.volume.dims),
@@ -157,9 +173,13 @@ impl PreparedScene {
             )));
         }
         log::warn!("{what}: downsampling to {}", dims_text(&dims));
-        self.volume = Arc::new(resample(&self.volume, dims)?);
+        if dims != self.volume.dims {
+            self.volume = Arc::new(resample(&self.volume, dims)?);
+        }
         if let Some(eta) = &self.eta_volume {
-            self.eta_volume = Some(Arc::new(resample(eta, dims)?));
+            if eta.dims != dims {
+                self.eta_volume = Some(Arc::new(resample(eta, dims)?));
+            }
         }
         Ok(Some(dims))
     }

@@ -209,6 +209,17 @@ impl Default for Quality {
 }
 
 impl Quality {
+    /// Whether light and view rays refract with these transfer functions: `auto` refracts
+    /// where η_tf is not constant (an η volume goes through η_tf too, so a constant curve
+    /// refracts nothing either way).
+    pub fn refracts(&self, tf: &crate::transfer::TransferFunctions) -> bool {
+        match self.refraction {
+            Toggle::On => true,
+            Toggle::Off => false,
+            Toggle::Auto => !tf.eta_is_constant(),
+        }
+    }
+
     /// The power budget in effect: the scene's, or the transport's default.
     pub fn max_concentration(&self) -> f32 {
         self.max_concentration.unwrap_or(match self.light_transport {
