@@ -147,10 +147,14 @@ struct Immediates {
 // Per plane: the tiles of the light grid that can still reach the image (origin tile x, y,
 // tiles per row, workgroups), computed on the CPU.
 @group(0) @binding(21) var<storage, read> light_window: array<vec4<u32>>;
-// Empty-space skipping (render/bricks.rs): per 8³ brick, 1 if anything in it absorbs or shows.
+// Empty-space skipping (render/bricks.rs): per 8³ brick, 1 if anything in it absorbs or shows
+// or, with refraction, η changes in it.
 @group(0) @binding(22) var<storage, read> bricks: array<u32>;
-// Per tile of the rect: view rays still alive.
+// Per tile of the rect: view rays still alive (and VIEW_TILE_BENT).
 @group(0) @binding(23) var<storage, read_write> view_tiles: array<atomic<u32>>;
+// Set in a view tile's count once one of its rays has been bent (or started in a medium): its
+// rays may then be anywhere, so the tile is stepped on every plane while any is alive.
+const VIEW_TILE_BENT: u32 = 0x80000000u;
 // A ring of three lists of the view tiles a plane needs, and their indirect dispatch
 // arguments (x, y, z; x counts the tiles).
 @group(0) @binding(24) var<storage, read_write> tile_lists: array<u32>;

@@ -86,9 +86,10 @@ fn tiles_clear_deposits() -> bool {
 // Per rect tile: the pixels clear the light slot the next plane deposits into, and the tile
 // is listed for plane k+1 if it needs it: a ray alive whose next segment (or the one after,
 // so that a ray is stepped onto the plane before it has something to composite) meets a
-// visible brick. Refracted rays can be anywhere: they only need to be alive. Written while
+// visible brick (with refraction, or one where η changes) along the rays' primary lines. Rays
+// once bent can be anywhere: their tile (VIEW_TILE_BENT) only needs a ray alive. Written while
 // plane k runs, so a tile whose last ray dies on plane k may be listed once more (its
-// invocations then find nothing to do).
+// invocations then find nothing to do); with refraction a barrier makes plane k's bends seen.
 @compute @workgroup_size(TILE * TILE, 1, 1)
 fn tiles_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
     let k = dispatch_plane(wg);
@@ -131,10 +132,13 @@ fn tiles_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_in
         // The list after next starts empty (its last reader was plane k-1).
         atomicStore(&tile_args[((k + 2u) % 3u) * 3u], 0u);
     }
-    if (atomicLoad(&view_tiles[t]) == 0u) {
+    let rays = atomicLoad(&view_tiles[t]);
+    if ((rays & ~VIEW_TILE_BENT) == 0u) {
         return;
     }
-    if (!REFRACTION) {
+    // Rays not bent yet are on their primary lines: empty bricks there can be skipped (with
+    // refraction the bricks also count where η changes).
+    if ((rays & VIEW_TILE_BENT) == 0u) {
         let lo = vec2<f32>(P.rect.xy + vec2<u32>(t % P.tiles.x, t / P.tiles.x) * TILE);
         let last = u32(P.plane.z) - 1u;
         let za = plane_z(min(k - 1u, last));

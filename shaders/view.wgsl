@@ -50,6 +50,9 @@ fn view_init(px: vec2<u32>) {
         eta = ix.eta;
         v = entering(d, eta);
         view_ray[i] = vec4<f32>(x.xy, v.xy);
+        if (eta != P.texel.w) {
+            atomicOr(&view_tiles[pixel_tile(px)], VIEW_TILE_BENT);
+        }
     }
     // z of aux: the plane the ray is on, plus one (0 once it has ended); w: η where the ray is
     // (the front of its next segment).
@@ -199,12 +202,17 @@ fn view_step(px: vec2<u32>, k: u32, tile: u32) {
     let skipped = u32(aux.z) != k;
     let ds = P.plane.y;
     let z = plane_z(k);
-    let x0 = view_position(px, i, k - 1u);
+    var x0 = view_position(px, i, k - 1u);
     var v = primary_dir(vec2<f32>(px));
     if (REFRACTION) {
         v = vec3<f32>(view_ray[i].zw, aux.x);
     }
     let dir = safe_normalize(v);
+    if (REFRACTION && skipped) {
+        // Skipped through empty bricks (its tile unbent): straight on from where it was stored.
+        let stored = vec3<f32>(x0.xy, plane_z(u32(aux.z) - 1u));
+        x0 = stored + dir * ((x0.z - stored.z) / dir.z);
+    }
     if (dir.z < P.limits.y && guarded(SG_VIEW_MIN_Z)) {
         // The ray turned (nearly) parallel to the planes or back toward the camera: it leaves
         // the sweep here and keeps its direction for the environment lookup.
@@ -243,6 +251,9 @@ fn view_step(px: vec2<u32>, k: u32, tile: u32) {
     var ix = Index(P.texel.w, vec3<f32>(0.0));
     if (REFRACTION) {
         ix = index_at(x1);
+        if (any(ix.grad != vec3<f32>(0.0))) {
+            atomicOr(&view_tiles[tile], VIEW_TILE_BENT);
+        }
     }
     var i_s = vec3<f32>(0.0);
     if (SPECULAR) {

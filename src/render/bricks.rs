@@ -81,6 +81,38 @@ pub fn bricks(samples: &[u16], dims: [usize; 3], tf: &TransferFunctions) -> Bric
     }
 }
 
+/// Marks the bricks where η changes as well (for refracting scenes): a texel of the gradient
+/// volume (`gradient.rs`, ∇η in xyz, `gradient_dims` voxels over the same box, which may
+/// differ from the volume's) within a voxel of the brick has a gradient other than zero. A
+/// view ray that has not been bent yet skips only bricks where neither happens.
+pub fn add_refracting(bricks: &mut Bricks, dims: [usize; 3], texels: &[[half::f16; 4]], gradient_dims: [usize; 3]) {
+    let nb = bricks.dims.map(|n| n as usize);
+    let [gx, gy, _] = gradient_dims;
+    // The gradient voxels over brick i along an axis, one voxel wider on each side.
+    let range = |i: usize, a: usize| {
+        let scale = gradient_dims[a] as f64 / dims[a] as f64;
+        let lo = ((i * BRICK) as f64 * scale).floor() as usize;
+        let hi = (((i + 1) * BRICK) as f64 * scale).ceil() as usize;
+        lo.saturating_sub(1)..(hi + 1).min(gradient_dims[a])
+    };
+    bricks.flags.par_iter_mut().enumerate().for_each(|(b, flag)| {
+        if *flag != 0 {
+            return;
+        }
+        let (bx, by, bz) = (b % nb[0], (b / nb[0]) % nb[1], b / (nb[0] * nb[1]));
+        let xs = range(bx, 0);
+        let changes = range(bz, 2).any(|z| {
+            range(by, 1).any(|y| {
+                let row = (z * gy + y) * gx;
+                texels[row + xs.start..row + xs.end]
+                    .iter()
+                    .any(|t| t[..3].iter().any(|g| g.to_f32() != 0.0))
+            })
+        });
+        *flag = u32::from(changes);
+    });
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -120,5 +152,36 @@ mod tests {
         // A tinted medium at the background value makes every brick count.
         let tinted = tf(vec![[0.0, 0.0]], vec![[0.0, 0.9, 1.0, 1.0], [1.0, 1.0, 1.0, 1.0]]);
         assert!(bricks(&samples, dims, &tinted).flags.iter().all(|f| *f == 1));
+    }
+
+    #[test]
+    fn bricks_where_eta_changes_count_for_refracting_scenes() {
+        // 24³ voxels, nothing visible; one gradient texel (∇η ≠ 0) at voxel (12, 12, 12):
+        // brick (1, 1, 1) only (it is in the middle of that brick).
+        let dims = [24, 24, 24];
+        let clear = tf(vec![[0.0, 0.0]], vec![[0.0, 1.0, 1.0, 1.0]]);
+        let mut b = bricks(&vec![0u16; 24 * 24 * 24], dims, &clear);
+        assert_eq!(b.flags.iter().sum::<u32>(), 0);
+        let mut texels = vec![[half::f16::ZERO; 4]; 24 * 24 * 24];
+        texels[(12 * 24 + 12) * 24 + 12][1] = half::f16::from_f32(-0.2);
+        // η itself (w) away from the change does not count.
+        texels[0][3] = half::f16::from_f32(0.4);
+        add_refracting(&mut b, dims, &texels, dims);
+        assert_eq!(b.flags.iter().sum::<u32>(), 1);
+        assert_eq!(b.flags[(3 + 1) * 3 + 1], 1);
+        // A gradient volume of twice the resolution over the same box: its voxel 31 (the
+        // volume's 15.75) is within a (fine) voxel of the boundary between bricks 1 and 2 along
+        // each axis, so it counts for all eight bricks there; its voxel 24 (12.25) for one.
+        let fine = [48, 48, 48];
+        let mut texels = vec![[half::f16::ZERO; 4]; 48 * 48 * 48];
+        texels[(24 * 48 + 24) * 48 + 24][0] = half::f16::from_f32(0.1);
+        let mut b = bricks(&vec![0u16; 24 * 24 * 24], dims, &clear);
+        add_refracting(&mut b, dims, &texels, fine);
+        assert_eq!(b.flags.iter().sum::<u32>(), 1);
+        texels[(31 * 48 + 31) * 48 + 31][0] = half::f16::from_f32(0.1);
+        let mut b = bricks(&vec![0u16; 24 * 24 * 24], dims, &clear);
+        add_refracting(&mut b, dims, &texels, fine);
+        assert_eq!(b.flags.iter().sum::<u32>(), 8);
+        assert_eq!(b.flags[(2 * 3 + 2) * 3 + 2], 1);
     }
 }

@@ -604,7 +604,8 @@ pub(super) fn run(
             }
             // Clears the ring for the next plane's deposits and lists its view tiles (and its
             // light tiles, from this plane's beams).
-            if layout.light_lists {
+            if layout.light_lists || features.refraction {
+                // The light tiles read the plane's light; the view tiles its rays' bends.
                 r.compute_to_compute();
             }
             r.dispatch(&pipelines[3], &sets[3], p, groups(tile_groups))?;

@@ -28,7 +28,8 @@ pub struct SceneTextures {
     pub linear_clamp: Sampler,
     pub volume_sampler: Sampler,
     pub env_sampler: Sampler,
-    /// Which 8³ bricks absorb or show (`bricks.rs`), one u32 each.
+    /// Which 8³ bricks absorb or show, or with refraction change η (`bricks.rs`), one u32
+    /// each.
     pub bricks: Buffer,
     pub brick_dims: [u32; 3],
     /// Where the light can change, on the CPU (`occupancy.rs`): the cells where particles
@@ -99,7 +100,7 @@ impl SceneTextures {
 
         let vol_img = volume_image(ctx, "volume", volume)?;
         let samples = volume.normalized_u16(window);
-        let occupancy = super::bricks::bricks(&samples, volume.dims, tf);
+        let mut occupancy = super::bricks::bricks(&samples, volume.dims, tf);
         let mut cells = vec![Occupancy::visible(&samples, volume.dims, tf)];
         let bytes: Vec<u8> = bytemuck::cast_slice(&samples).to_vec();
         uploads.push((images.len(), vec![(staging.push(&bytes), vol_img.desc.extent)]));
@@ -115,6 +116,7 @@ impl SceneTextures {
                     None => (volume.dims, gradient_volume(&samples, volume.dims, &tf.eta, scheme)),
                 };
                 cells.push(Occupancy::refracting(&g, dims));
+                super::bricks::add_refracting(&mut occupancy, volume.dims, &g, dims);
                 ([dims[0] as u32, dims[1] as u32, dims[2] as u32], g)
             }
             None => ([1, 1, 1], vec![[half::f16::ZERO; 4]]),
