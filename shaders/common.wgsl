@@ -89,7 +89,7 @@ struct Params {
     texel: vec4<f32>,                // 1 / volume dims (xyz), η outside the volume (w)
     background: vec4<f32>,           // rgb background when there is no environment map; w: 1 = use env map
     limits: vec4<f32>,               // min light dir z, min view dir z, max light value, env map mip count
-    budget: vec4<f32>,               // x: max concentration (light / source light); y: interface half-width (view units); z: light tiles' margin around the box (view units); w: unused
+    budget: vec4<f32>,               // x: max concentration (light / source light); y: interface half-width (view units); z: light tiles' margin around the box (view units); w: 1 when the value outside the volume is clear
     beam_origin: vec4<f32>,          // beams: plane-0 pixel coords of cell (0, 0)'s corner (xy), stride (z), plane-0 cell area / pixel area (w)
     beam_grid: vec4<u32>,            // light grid: width, height, tiles in x, workgroups
     rect: vec4<u32>,                 // pixels whose rays can meet the volume: x0, y0, x1, y1 (half-open)

@@ -189,6 +189,22 @@ fn segment_highlight(x0: vec3<f32>, x1: vec3<f32>, e0: f32, e1: f32, dir: vec3<f
     return P.shading.x * share * f * cook_torrance(n, -light_dir, view, P.shading.y) * light * P.light_color.rgb;
 }
 
+// Whether a ray at p going along v is outside the volume's box, more than a voxel and a half
+// beyond a face (what trilinear sampling of the value and the gradient reaches), and moving
+// away from it, where nothing shows, absorbs or bends (P.budget.w: the value outside the
+// volume is clear): a straight line leaving a box never comes back to it.
+fn left_for_good(p: vec3<f32>, v: vec3<f32>) -> bool {
+    if (P.budget.w == 0.0) {
+        return false;
+    }
+    let q = volume_coord(p);
+    let dq = (P.volume_from_view * vec4<f32>(v, 0.0)).xyz;
+    let m = 1.5 * P.texel.xyz;
+    let below = q < -m & dq <= vec3<f32>(0.0);
+    let above = q > vec3<f32>(1.0) + m & dq >= vec3<f32>(0.0);
+    return any(below | above);
+}
+
 // One segment from plane k-1 to plane k.
 fn view_step(px: vec2<u32>, k: u32, tile: u32) {
     let i = pixel_index(px);
@@ -280,9 +296,10 @@ fn view_step(px: vec2<u32>, k: u32, tile: u32) {
     aux.z = f32(k + 1u);
     store_view_color(i, color);
     store_view_light(i, vec4<f32>(light1, 0.0));
-    // Early termination once nothing behind can show through.
+    // Early termination once nothing behind can show through, or once a refracted ray has
+    // left the volume for good (it keeps its direction for the environment).
     let through = (1.0 - color.a) * max(medium.r, max(medium.g, medium.b));
-    if (through < 1.0 - P.shading.z) {
+    if (through < 1.0 - P.shading.z || (REFRACTION && left_for_good(x1, v))) {
         view_end(i, tile, aux);
     } else {
         view_aux[i] = aux;

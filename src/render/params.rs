@@ -21,7 +21,9 @@ pub struct Params {
     pub limits: [f32; 4],
     /// x: largest concentration of the light (quality.max_concentration); y: half-width of an
     /// index interface for the Fresnel term (view units); z: beams with light tiles listed:
-    /// the margin around the volume's box within which beams are stepped (view units); w unused.
+    /// the margin around the volume's box within which beams are stepped (view units); w: 1 when
+    /// the value outside the volume absorbs and shows nothing (refracted view rays that leave
+    /// the box for good end there).
     pub budget: [f32; 4],
     /// Light grid: plane-0 pixel coordinates of cell (0, 0)'s corner, stride (pixels per
     /// cell), cell area over pixel area on plane 0.

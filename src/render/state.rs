@@ -235,7 +235,7 @@ fn make_params(
             scene.quality.max_concentration(),
             INTERFACE_HALF_WIDTH_VOXELS * min_spacing,
             light_margin,
-            0.0,
+            f32::from(u8::from(super::bricks::clear_outside(&prepared.tf))),
         ],
         beam_origin: [g.x0, g.y0, g.stride, g.stride * g.stride],
         beam_grid: [g.width, g.height, tiles(g.width), layout.beam_groups],
