@@ -501,8 +501,9 @@ fn beams_init(ij: vec2<u32>) {
         store_beam_power(3u * beam_count() + index, vec4<f32>(b.power, 0.0));
     }
     if (SCATTER) {
-        beam_scatter[2u * index] = vec4<f32>(0.0);
-        beam_scatter[2u * index + 1u] = vec4<f32>(0.0);
+        beam_scatter[3u * index] = vec4<f32>(0.0);
+        beam_scatter[3u * index + 1u] = vec4<f32>(0.0);
+        beam_scatter[3u * index + 2u] = vec4<f32>(0.0);
     }
     if (!REFRACTION) {
         return;
@@ -987,13 +988,95 @@ fn deposit_cloud(slot: u32, c: vec2<f32>, variance: f32, amount: vec3<f32>, seed
     }
 }
 
+// Light scattered back out of the face a beam entered by. Besides the transverse moments the
+// beam carries the longitudinal ones of its light: with w = s − z the lag of a photon behind
+// the beam (w' = 1 − μ),
+//
+//   dE[wμ]/ds = P₁ − (1 + 2P₂)/3 − k₁E[wμ],  dE[w²]/ds = 2(E[w] − E[wμ]),
+//
+// (E[w] is the lag; `SpreadMoments` mirrors them), the path since the medium began and the
+// cosine θ between the light and the normal of the face where it began. The scattered light's
+// depth below that face is then (path − E[w])·cos θ with variance Var[w]·cos²θ + (transverse
+// variance)·sin²θ (over the scattered fraction); the part of the cloud that a Gaussian of
+// those puts behind the face has left the medium there. Free transport puts behind the face
+// only the photons that are outside now, not those that crossed it and came back in, so this
+// is the least the face reflects.
+
+// The entry state (path since the medium began, cos θ at the face, E[wμ], E[w²]) advanced
+// over a path h with scattering optical depth bh and anisotropy g, from the moments m and lag
+// w before it.
+fn spread_entry(e: vec4<f32>, m: vec4<f32>, w: f32, bh: f32, g: f32, h: f32) -> vec4<f32> {
+    let y1 = bh * (1.0 - g);
+    let y2 = bh * (1.0 - g * g);
+    let p1 = exp(-(1.0 - g) * m.w);
+    let p2 = 1.0 - m.x;
+    // E[wμ] exactly (P₁ = p1·e^(−k₁t), P₂ = p2·e^(−k₂t)); E[w²] by Simpson's rule.
+    let d_mid = wmu_after(e.z, p1, p2, 0.5 * y1, 0.5 * y2, 0.5 * h);
+    let d_end = wmu_after(e.z, p1, p2, y1, y2, h);
+    let w_mid = w + 0.5 * h * (1.0 - p1 * spread_mean_exp(0.5 * y1));
+    let w_end = w + h * (1.0 - p1 * spread_mean_exp(y1));
+    let w2 = e.w + (h / 3.0) * ((w - e.z) + 4.0 * (w_mid - d_mid) + (w_end - d_end));
+    var path = e.x;
+    if (m.w + bh > 0.0) {
+        path += h;
+    }
+    return vec4<f32>(path, e.y, d_end, w2);
+}
+
+// E[wμ] after a path t from d0 (y1 = k₁t, y2 = k₂t): the exact solution,
+// d0·e^(−y1) + t·(p1·e^(−y1) − mean_exp(y1)/3 − (2/3)·p2·e^(−y1)·mean_exp(y2 − y1)).
+fn wmu_after(d0: f32, p1: f32, p2: f32, y1: f32, y2: f32, t: f32) -> f32 {
+    let e1 = exp(-y1);
+    return d0 * e1 + t * (p1 * e1 - spread_mean_exp(y1) / 3.0 - (2.0 / 3.0) * p2 * e1 * spread_mean_exp(y2 - y1));
+}
+
+// |cos θ| between the light and the normal of the medium's face at p (the data value's
+// gradient); 1 where the value has no gradient there (the medium fades in).
+fn entry_cosine(p: vec3<f32>) -> f32 {
+    let h = P.plane.y;
+    let grad = vec3<f32>(
+        sample_value(p + vec3<f32>(h, 0.0, 0.0)) - sample_value(p - vec3<f32>(h, 0.0, 0.0)),
+        sample_value(p + vec3<f32>(0.0, h, 0.0)) - sample_value(p - vec3<f32>(0.0, h, 0.0)),
+        sample_value(p + vec3<f32>(0.0, 0.0, h)) - sample_value(p - vec3<f32>(0.0, 0.0, h)));
+    let len = length(grad);
+    if (len < 1e-6) {
+        return 1.0;
+    }
+    return abs(dot(grad, P.light_dir.xyz)) / len;
+}
+
+// Φ(−x), the normal distribution's tail beyond x (Bowling et al. 2009's logistic fit to the
+// normal CDF, error below 1.4e-4).
+fn normal_tail(x: f32) -> f32 {
+    return 1.0 / (1.0 + exp(clamp(1.5976 * x + 0.070566 * x * x * x, -80.0, 80.0)));
+}
+
+// The fraction of the scattered light behind the face its beam entered by (moments m, lag
+// w, entry state e).
+fn spread_behind(m: vec4<f32>, w: f32, e: vec4<f32>) -> f32 {
+    let frac = m.w * spread_mean_exp(m.w);
+    if (frac < 1e-6) {
+        return 0.0;
+    }
+    let mean_w = w / frac;
+    let var_w = max(e.w / frac - mean_w * mean_w, 0.0);
+    let var_t = 0.5 * m.z / frac;
+    let c = e.y;
+    let depth = (e.x - mean_w) * c;
+    let var_n = var_w * c * c + var_t * (1.0 - c * c);
+    if (var_n <= 0.0) {
+        return select(0.0, 1.0, depth < 0.0);
+    }
+    return normal_tail(depth / sqrt(var_n));
+}
+
 // One segment of the spread mode for beam `index`, whose unscattered power went from
 // `u_before` to b.power over the segment from x0 to b.pos (front value `value_front`, back
 // value b.value); deposits its scattered light on plane k. du, dv: the beam's cell.
 fn spread_step(index: u32, k: u32, b: Beam, u_before: vec3<f32>, x0: vec3<f32>, value_front: f32, du: vec3<f32>, dv: vec3<f32>) {
     let n = beam_count();
-    let read = 2u * (((k - 1u) % 2u) * n + index);
-    let write = 2u * ((k % 2u) * n + index);
+    let read = 3u * (((k - 1u) % 2u) * n + index);
+    let write = 3u * ((k % 2u) * n + index);
     let a = beam_scatter[read];
     var scattered = a.rgb;
     let l = length(b.pos - x0);
@@ -1008,18 +1091,29 @@ fn spread_step(index: u32, k: u32, b: Beam, u_before: vec3<f32>, x0: vec3<f32>, 
     let tau = -log(max(1.0 - alpha, 1e-30));
     let sc = scatter_coefficients(split.y);
     let albedo = clamp(sc.x, 0.0, 1.0);
-    // Scattered light goes on losing only what is absorbed: (1 − ω) of the extinction, and
-    // the medium; the unscattered light gives it ω of what the particles took.
-    scattered = scattered * exp(-(1.0 - albedo) * tau) * t_medium + u_before * alpha * albedo * t_medium;
     let m_before = beam_scatter[read + 1u];
+    let e_before = beam_scatter[read + 2u];
     let m = spread_moments(m_before, albedo * tau, sc.y, l);
     // The lag of all the light behind the beam, s − E[z]: it grows by ∫(1 − P₁) over the
     // segment, P₁ = e^{−(1−g)∫b} at the local g (exact where g is constant).
     let y1 = (1.0 - sc.y) * albedo * tau;
     let p1 = exp(-(1.0 - sc.y) * m_before.w);
     let lag = a.w + l * (1.0 - p1 * spread_mean_exp(y1));
+    var e = spread_entry(e_before, m_before, a.w, albedo * tau, sc.y, l);
+    if (m_before.w <= 0.0 && m.w > 0.0) {
+        e.y = entry_cosine(mid);
+    }
+    // The part of the cloud that crossed back out through the face it entered by since the
+    // last plane leaves the medium (a fraction of what the cloud held).
+    let behind_before = spread_behind(m_before, a.w, e_before);
+    let behind_now = spread_behind(m, lag, e);
+    let left = max(behind_now - behind_before, 0.0) / max(1.0 - behind_before, 1e-6);
+    // Scattered light goes on losing only what is absorbed: (1 − ω) of the extinction, and
+    // the medium; the unscattered light gives it ω of what the particles took.
+    scattered = scattered * (1.0 - left) * exp(-(1.0 - albedo) * tau) * t_medium + u_before * alpha * albedo * t_medium;
     beam_scatter[write] = vec4<f32>(scattered, lag);
     beam_scatter[write + 1u] = m;
+    beam_scatter[write + 2u] = e;
     if (max(scattered.r, max(scattered.g, scattered.b)) <= 0.0) {
         return;
     }
