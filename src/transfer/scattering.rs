@@ -88,6 +88,8 @@ pub struct SpreadMoments {
     pub lag_cos: f64,
     /// E[w²].
     pub lag2: f64,
+    /// The scattering optical depth ∫b ds: 1 − e^(−∫b ds) of the light has scattered.
+    pub scattering_depth: f64,
 }
 
 impl Default for SpreadMoments {
@@ -101,6 +103,7 @@ impl Default for SpreadMoments {
             lag: 0.0,
             lag_cos: 0.0,
             lag2: 0.0,
+            scattering_depth: 0.0,
         }
     }
 }
@@ -143,12 +146,42 @@ impl SpreadMoments {
             self.p1 = p1 * (-k1 * h).exp();
             self.p2 = p2 * (-k2 * h).exp();
         }
+        self.scattering_depth += b.max(0.0) * ds;
+    }
+
+    /// The share of the scattered light (not the unscattered) that lies behind the face the
+    /// beam entered the medium by, `path` before (its path since then) at `cos_entry` to the
+    /// face's normal: a Gaussian of the light's depth below the face, mean (path − E[w])·cos θ
+    /// over the scattered fraction, variance Var[w]·cos²θ + (R/2)·sin²θ. The spread mode lets
+    /// what comes to lie there leave (`spread_behind` in shaders/beams.wgsl, which this
+    /// mirrors, with the same fit of the normal distribution's tail).
+    pub fn behind_entry(&self, path: f64, cos_entry: f64) -> f64 {
+        let frac = 1.0 - (-self.scattering_depth).exp();
+        if frac < 1e-6 {
+            return 0.0;
+        }
+        let mean_w = self.lag / frac;
+        let var_w = (self.lag2 / frac - mean_w * mean_w).max(0.0);
+        let var_t = 0.5 * self.r2 / frac;
+        let c = cos_entry;
+        let depth = (path - mean_w) * c;
+        let var_n = var_w * c * c + var_t * (1.0 - c * c);
+        if var_n <= 0.0 {
+            return if depth < 0.0 { 1.0 } else { 0.0 };
+        }
+        normal_tail(depth / var_n.sqrt())
     }
 
     /// Variance of the light's position per axis about the beam.
     pub fn variance_per_axis(&self) -> f64 {
         0.5 * self.r2
     }
+}
+
+/// Φ(−x), the normal distribution's tail beyond x: Bowling et al. 2009's logistic fit to the
+/// normal CDF (error below 1.4·10⁻⁴), as the GPU evaluates it.
+fn normal_tail(x: f64) -> f64 {
+    1.0 / (1.0 + (1.5976 * x + 0.070566 * x * x * x).clamp(-80.0, 80.0).exp())
 }
 
 /// The GPU's scattering table: per data value (TABLE_SIZE entries over [0, 1], the same
@@ -209,6 +242,25 @@ mod tests {
             assert!((ratio - 2.0 / 3.0).abs() < 1e-12, "{ratio}");
         }
         assert_eq!(premoze_eq1(0.1, 0.0, t2, s), 0.0);
+    }
+
+    #[test]
+    fn the_share_behind_the_face_grows_with_the_path_and_the_slant() {
+        // Before anything scatters there is no cloud; the tail fit is Φ(−x) within 1.4·10⁻⁴
+        // (Φ(−1) = 0.158655, Φ(0) = 0.5); a beam entering at a slant puts more of its light
+        // behind the face than one entering head-on, and the share grows as the cloud spreads.
+        assert_eq!(SpreadMoments::default().behind_entry(0.0, 1.0), 0.0);
+        assert!((normal_tail(1.0) - 0.158655).abs() < 1.4e-4);
+        assert!((normal_tail(0.0) - 0.5).abs() < 1e-12);
+        let mut m = SpreadMoments::default();
+        let mut previous = 0.0;
+        for step in 1..=20 {
+            m.step(0.25, 0.6, 1.0);
+            let path = step as f64;
+            let (head_on, slant) = (m.behind_entry(path, 1.0), m.behind_entry(path, 0.34));
+            assert!(slant > head_on && head_on >= previous, "{path}: {head_on} {slant}");
+            previous = head_on;
+        }
     }
 
     #[test]
