@@ -1002,32 +1002,38 @@ fn deposit_cloud(slot: u32, c: vec2<f32>, variance: f32, amount: vec3<f32>, seed
 // only the photons that are outside now, not those that crossed it and came back in, so this
 // is the least the face reflects.
 
-// The entry state (path since the medium began, cos θ at the face, E[wμ], E[w²]) advanced
-// over a path h with scattering optical depth bh and anisotropy g, from the moments m and lag
-// w before it.
-fn spread_entry(e: vec4<f32>, m: vec4<f32>, w: f32, bh: f32, g: f32, h: f32) -> vec4<f32> {
-    let y1 = bh * (1.0 - g);
-    let y2 = bh * (1.0 - g * g);
-    let p1 = exp(-(1.0 - g) * m.w);
-    let p2 = 1.0 - m.x;
-    // E[wμ] exactly (P₁ = p1·e^(−k₁t), P₂ = p2·e^(−k₂t)); E[w²] by Simpson's rule.
-    let d_mid = wmu_after(e.z, p1, p2, 0.5 * y1, 0.5 * y2, 0.5 * h);
-    let d_end = wmu_after(e.z, p1, p2, y1, y2, h);
-    let w_mid = w + 0.5 * h * (1.0 - p1 * spread_mean_exp(0.5 * y1));
-    let w_end = w + h * (1.0 - p1 * spread_mean_exp(y1));
-    let w2 = e.w + (h / 3.0) * ((w - e.z) + 4.0 * (w_mid - d_mid) + (w_end - d_end));
-    var path = e.x;
-    if (m.w + bh > 0.0) {
-        path += h;
+// (1 − e^−x) / x from ex = e^−x (`spread_mean_exp` without a second exponential).
+fn spread_mean_exp_of(x: f32, ex: f32) -> f32 {
+    if (abs(x) < 1e-3) {
+        return 1.0 - x * (0.5 - x / 6.0);
     }
-    return vec4<f32>(path, e.y, d_end, w2);
+    return (1.0 - ex) / x;
 }
 
-// E[wμ] after a path t from d0 (y1 = k₁t, y2 = k₂t): the exact solution,
-// d0·e^(−y1) + t·(p1·e^(−y1) − mean_exp(y1)/3 − (2/3)·p2·e^(−y1)·mean_exp(y2 − y1)).
-fn wmu_after(d0: f32, p1: f32, p2: f32, y1: f32, y2: f32, t: f32) -> f32 {
-    let e1 = exp(-y1);
-    return d0 * e1 + t * (p1 * e1 - spread_mean_exp(y1) / 3.0 - (2.0 / 3.0) * p2 * e1 * spread_mean_exp(y2 - y1));
+// E[wμ] after a path t from d0, with y1 = k₁t, y2 = k₂t, e1 = e^−y1, e21 = e^−(y2 − y1) and
+// P₁ = p1·e^(−k₁s), P₂ = p2·e^(−k₂s) along it: the exact solution,
+// d0·e1 + t·(p1·e1 − mean_exp(y1)/3 − (2/3)·p2·e1·mean_exp(y2 − y1)).
+fn wmu_after(d0: f32, p1: f32, p2: f32, y1: f32, y2: f32, e1: f32, e21: f32, t: f32) -> f32 {
+    let m1 = spread_mean_exp_of(y1, e1);
+    let m21 = spread_mean_exp_of(y2 - y1, e21);
+    return d0 * e1 + t * (p1 * e1 - m1 / 3.0 - (2.0 / 3.0) * p2 * e1 * m21);
+}
+
+// The entry state (path since the medium began, cos θ at the face, E[wμ], E[w²]) advanced
+// over a path h with scattering optical depth bh and anisotropy g, from the moments m and lag
+// w before it; p1 = P₁ before it, lag the lag after it.
+fn spread_entry(e: vec4<f32>, m: vec4<f32>, w: f32, lag: f32, p1: f32, bh: f32, g: f32, h: f32) -> vec4<f32> {
+    let y1 = bh * (1.0 - g);
+    let y2 = bh * (1.0 - g * g);
+    let p2 = 1.0 - m.x;
+    // E[wμ] exactly; E[w²] by Simpson's rule on E[w] − E[wμ] (E[w] exact).
+    let e1_half = exp(-0.5 * y1);
+    let e21_half = exp(-0.5 * (y2 - y1));
+    let d_mid = wmu_after(e.z, p1, p2, 0.5 * y1, 0.5 * y2, e1_half, e21_half, 0.5 * h);
+    let d_end = wmu_after(e.z, p1, p2, y1, y2, e1_half * e1_half, e21_half * e21_half, h);
+    let w_mid = w + 0.5 * h * (1.0 - p1 * spread_mean_exp_of(0.5 * y1, e1_half));
+    let w2 = e.w + (h / 3.0) * ((w - e.z) + 4.0 * (w_mid - d_mid) + (lag - d_end));
+    return vec4<f32>(e.x + h, e.y, d_end, w2);
 }
 
 // |cos θ| between the light and the normal of the medium's face at p (the data value's
@@ -1052,9 +1058,8 @@ fn normal_tail(x: f32) -> f32 {
 }
 
 // The fraction of the scattered light behind the face its beam entered by (moments m, lag
-// w, entry state e).
-fn spread_behind(m: vec4<f32>, w: f32, e: vec4<f32>) -> f32 {
-    let frac = m.w * spread_mean_exp(m.w);
+// w, entry state e; frac = 1 − e^−m.w, the part of the light that has scattered).
+fn spread_behind(m: vec4<f32>, w: f32, e: vec4<f32>, frac: f32) -> f32 {
     if (frac < 1e-6) {
         return 0.0;
     }
@@ -1099,15 +1104,20 @@ fn spread_step(index: u32, k: u32, b: Beam, u_before: vec3<f32>, x0: vec3<f32>, 
     let y1 = (1.0 - sc.y) * albedo * tau;
     let p1 = exp(-(1.0 - sc.y) * m_before.w);
     let lag = a.w + l * (1.0 - p1 * spread_mean_exp(y1));
-    var e = spread_entry(e_before, m_before, a.w, albedo * tau, sc.y, l);
-    if (m_before.w <= 0.0 && m.w > 0.0) {
-        e.y = entry_cosine(mid);
+    let frac = m.w * spread_mean_exp(m.w);
+    var e = e_before;
+    var left = 0.0;
+    if (m.w > 0.0) {
+        e = spread_entry(e_before, m_before, a.w, lag, p1, albedo * tau, sc.y, l);
+        if (m_before.w <= 0.0) {
+            e.y = entry_cosine(mid);
+        }
+        // The part of the cloud that crossed back out through the face it entered by since
+        // the last plane leaves the medium (a fraction of what the cloud held).
+        let behind_before = spread_behind(m_before, a.w, e_before, m_before.w * spread_mean_exp(m_before.w));
+        let behind_now = spread_behind(m, lag, e, frac);
+        left = max(behind_now - behind_before, 0.0) / max(1.0 - behind_before, 1e-6);
     }
-    // The part of the cloud that crossed back out through the face it entered by since the
-    // last plane leaves the medium (a fraction of what the cloud held).
-    let behind_before = spread_behind(m_before, a.w, e_before);
-    let behind_now = spread_behind(m, lag, e);
-    let left = max(behind_now - behind_before, 0.0) / max(1.0 - behind_before, 1e-6);
     // Scattered light goes on losing only what is absorbed: (1 − ω) of the extinction, and
     // the medium; the unscattered light gives it ω of what the particles took.
     scattered = scattered * (1.0 - left) * exp(-(1.0 - albedo) * tau) * t_medium + u_before * alpha * albedo * t_medium;
@@ -1119,7 +1129,6 @@ fn spread_step(index: u32, k: u32, b: Beam, u_before: vec3<f32>, x0: vec3<f32>, 
     }
     // The scattered light's own spread: R is that of all the light, whose unscattered part
     // 1 − (1 − e^−∫b) stays on the axis.
-    let frac = m.w * spread_mean_exp(m.w);
     let spread = 0.5 * m.z / max(frac, 1e-12);
     // In pixels² on this plane (a pixel's side there: sqrt(pixel_area)), plus the cell's own
     // box footprint.
