@@ -504,8 +504,9 @@ fn beams_init(ij: vec2<u32>) {
         store_beam_power(3u * beam_count() + index, vec4<f32>(b.power, 0.0));
     }
     if (SCATTER) {
-        beam_scatter[2u * index] = vec4<f32>(0.0);
-        beam_scatter[2u * index + 1u] = vec4<f32>(0.0);
+        beam_scatter[3u * index] = vec4<f32>(0.0);
+        beam_scatter[3u * index + 1u] = vec4<f32>(0.0);
+        beam_scatter[3u * index + 2u] = vec4<f32>(0.0);
     }
     if (!REFRACTION) {
         return;
@@ -984,13 +985,100 @@ fn deposit_cloud(slot: u32, c: vec2<f32>, variance: f32, amount: vec3<f32>, seed
     }
 }
 
+// Light scattered back out of the face a beam entered by. Besides the transverse moments the
+// beam carries the longitudinal ones of its light: with w = s − z the lag of a photon behind
+// the beam (w' = 1 − μ),
+//
+//   dE[wμ]/ds = P₁ − (1 + 2P₂)/3 − k₁E[wμ],  dE[w²]/ds = 2(E[w] − E[wμ]),
+//
+// (E[w] is the lag; `SpreadMoments` mirrors them), the path since the medium began and the
+// cosine θ between the light and the normal of the face where it began. The scattered light's
+// depth below that face is then (path − E[w])·cos θ with variance Var[w]·cos²θ + (transverse
+// variance)·sin²θ (over the scattered fraction); the part of the cloud that a Gaussian of
+// those puts behind the face has left the medium there. Free transport puts behind the face
+// only the photons that are outside now, not those that crossed it and came back in, so this
+// is the least the face reflects.
+
+// (1 − e^−x) / x from ex = e^−x (`spread_mean_exp` without a second exponential).
+fn spread_mean_exp_of(x: f32, ex: f32) -> f32 {
+    if (abs(x) < 1e-3) {
+        return 1.0 - x * (0.5 - x / 6.0);
+    }
+    return (1.0 - ex) / x;
+}
+
+// E[wμ] after a path t from d0, with y1 = k₁t, y2 = k₂t, e1 = e^−y1, e21 = e^−(y2 − y1) and
+// P₁ = p1·e^(−k₁s), P₂ = p2·e^(−k₂s) along it: the exact solution,
+// d0·e1 + t·(p1·e1 − mean_exp(y1)/3 − (2/3)·p2·e1·mean_exp(y2 − y1)).
+fn wmu_after(d0: f32, p1: f32, p2: f32, y1: f32, y2: f32, e1: f32, e21: f32, t: f32) -> f32 {
+    let m1 = spread_mean_exp_of(y1, e1);
+    let m21 = spread_mean_exp_of(y2 - y1, e21);
+    return d0 * e1 + t * (p1 * e1 - m1 / 3.0 - (2.0 / 3.0) * p2 * e1 * m21);
+}
+
+// The entry state (path since the medium began, cos θ at the face, E[wμ], E[w²]) advanced
+// over a path h with scattering optical depth bh and anisotropy g, from the moments m and lag
+// w before it; p1 = P₁ before it, lag the lag after it.
+fn spread_entry(e: vec4<f32>, m: vec4<f32>, w: f32, lag: f32, p1: f32, bh: f32, g: f32, h: f32) -> vec4<f32> {
+    let y1 = bh * (1.0 - g);
+    let y2 = bh * (1.0 - g * g);
+    let p2 = 1.0 - m.x;
+    // E[wμ] exactly; E[w²] by Simpson's rule on E[w] − E[wμ] (E[w] exact).
+    let e1_half = exp(-0.5 * y1);
+    let e21_half = exp(-0.5 * (y2 - y1));
+    let d_mid = wmu_after(e.z, p1, p2, 0.5 * y1, 0.5 * y2, e1_half, e21_half, 0.5 * h);
+    let d_end = wmu_after(e.z, p1, p2, y1, y2, e1_half * e1_half, e21_half * e21_half, h);
+    let w_mid = w + 0.5 * h * (1.0 - p1 * spread_mean_exp_of(0.5 * y1, e1_half));
+    let w2 = e.w + (h / 3.0) * ((w - e.z) + 4.0 * (w_mid - d_mid) + (lag - d_end));
+    return vec4<f32>(e.x + h, e.y, d_end, w2);
+}
+
+// |cos θ| between the light and the normal of the medium's face at p (the data value's
+// gradient); 1 where the value has no gradient there (the medium fades in).
+fn entry_cosine(p: vec3<f32>) -> f32 {
+    let h = P.plane.y;
+    let grad = vec3<f32>(
+        sample_value(p + vec3<f32>(h, 0.0, 0.0)) - sample_value(p - vec3<f32>(h, 0.0, 0.0)),
+        sample_value(p + vec3<f32>(0.0, h, 0.0)) - sample_value(p - vec3<f32>(0.0, h, 0.0)),
+        sample_value(p + vec3<f32>(0.0, 0.0, h)) - sample_value(p - vec3<f32>(0.0, 0.0, h)));
+    let len = length(grad);
+    if (len < 1e-6) {
+        return 1.0;
+    }
+    return abs(dot(grad, P.light_dir.xyz)) / len;
+}
+
+// Φ(−x), the normal distribution's tail beyond x (Bowling et al. 2009's logistic fit to the
+// normal CDF, error below 1.4e-4).
+fn normal_tail(x: f32) -> f32 {
+    return 1.0 / (1.0 + exp(clamp(1.5976 * x + 0.070566 * x * x * x, -80.0, 80.0)));
+}
+
+// The fraction of the scattered light behind the face its beam entered by (moments m, lag
+// w, entry state e; frac = 1 − e^−m.w, the part of the light that has scattered).
+fn spread_behind(m: vec4<f32>, w: f32, e: vec4<f32>, frac: f32) -> f32 {
+    if (frac < 1e-6) {
+        return 0.0;
+    }
+    let mean_w = w / frac;
+    let var_w = max(e.w / frac - mean_w * mean_w, 0.0);
+    let var_t = 0.5 * m.z / frac;
+    let c = e.y;
+    let depth = (e.x - mean_w) * c;
+    let var_n = var_w * c * c + var_t * (1.0 - c * c);
+    if (var_n <= 0.0) {
+        return select(0.0, 1.0, depth < 0.0);
+    }
+    return normal_tail(depth / sqrt(var_n));
+}
+
 // One segment of the spread mode for beam `index`, whose unscattered power went from
 // `u_before` to b.power over the segment from x0 to b.pos (front value `value_front`, back
 // value b.value); deposits its scattered light on plane k. du, dv: the beam's cell.
 fn spread_step(index: u32, k: u32, b: Beam, u_before: vec3<f32>, x0: vec3<f32>, value_front: f32, du: vec3<f32>, dv: vec3<f32>) {
     let n = beam_count();
-    let read = 2u * (((k - 1u) % 2u) * n + index);
-    let write = 2u * ((k % 2u) * n + index);
+    let read = 3u * (((k - 1u) % 2u) * n + index);
+    let write = 3u * ((k % 2u) * n + index);
     let a = beam_scatter[read];
     var scattered = a.rgb;
     let l = length(b.pos - x0);
@@ -1005,24 +1093,39 @@ fn spread_step(index: u32, k: u32, b: Beam, u_before: vec3<f32>, x0: vec3<f32>, 
     let tau = -log(max(1.0 - alpha, 1e-30));
     let sc = scatter_coefficients(split.y);
     let albedo = clamp(sc.x, 0.0, 1.0);
-    // Scattered light goes on losing only what is absorbed: (1 − ω) of the extinction, and
-    // the medium; the unscattered light gives it ω of what the particles took.
-    scattered = scattered * exp(-(1.0 - albedo) * tau) * t_medium + u_before * alpha * albedo * t_medium;
     let m_before = beam_scatter[read + 1u];
+    let e_before = beam_scatter[read + 2u];
     let m = spread_moments(m_before, albedo * tau, sc.y, l);
     // The lag of all the light behind the beam, s − E[z]: it grows by ∫(1 − P₁) over the
     // segment, P₁ = e^{−(1−g)∫b} at the local g (exact where g is constant).
     let y1 = (1.0 - sc.y) * albedo * tau;
     let p1 = exp(-(1.0 - sc.y) * m_before.w);
     let lag = a.w + l * (1.0 - p1 * spread_mean_exp(y1));
+    let frac = m.w * spread_mean_exp(m.w);
+    var e = e_before;
+    var left = 0.0;
+    if (m.w > 0.0) {
+        e = spread_entry(e_before, m_before, a.w, lag, p1, albedo * tau, sc.y, l);
+        if (m_before.w <= 0.0) {
+            e.y = entry_cosine(mid);
+        }
+        // The part of the cloud that crossed back out through the face it entered by since
+        // the last plane leaves the medium (a fraction of what the cloud held).
+        let behind_before = spread_behind(m_before, a.w, e_before, m_before.w * spread_mean_exp(m_before.w));
+        let behind_now = spread_behind(m, lag, e, frac);
+        left = max(behind_now - behind_before, 0.0) / max(1.0 - behind_before, 1e-6);
+    }
+    // Scattered light goes on losing only what is absorbed: (1 − ω) of the extinction, and
+    // the medium; the unscattered light gives it ω of what the particles took.
+    scattered = scattered * (1.0 - left) * exp(-(1.0 - albedo) * tau) * t_medium + u_before * alpha * albedo * t_medium;
     beam_scatter[write] = vec4<f32>(scattered, lag);
     beam_scatter[write + 1u] = m;
+    beam_scatter[write + 2u] = e;
     if (max(scattered.r, max(scattered.g, scattered.b)) <= 0.0) {
         return;
     }
     // The scattered light's own spread: R is that of all the light, whose unscattered part
     // 1 − (1 − e^−∫b) stays on the axis.
-    let frac = m.w * spread_mean_exp(m.w);
     let spread = 0.5 * m.z / max(frac, 1e-12);
     // In pixels² on this plane (a pixel's side there: sqrt(pixel_area)), plus the cell's own
     // box footprint.

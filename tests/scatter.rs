@@ -1,6 +1,7 @@
 //! Multiple scattering, spread mode (Premoze et al. 2004), against the Monte Carlo reference
 //! (`reference::scatter`): the spread of a narrow beam in a forward-scattering slab, energy in
-//! a conservative slab, and today's image when nothing scatters.
+//! a conservative slab, the light it lets out of its lit face, and today's image when nothing
+//! scatters.
 
 mod common;
 
@@ -114,9 +115,11 @@ fn a_narrow_beam_spreads_in_a_forward_scattering_slab_like_the_monte_carlo_light
 #[test]
 fn a_conservative_slab_passes_on_all_the_light_it_receives() {
     // Albedo 1, no absorption, lit all over: whatever scatters goes on (forward, in this
-    // model), so the light on every plane behind the entry is the light that entered. The
-    // Monte Carlo slab sends part of it back (reflected), which the spread mode, carrying
-    // scattered light forward with the beams, cannot: reported, not asserted.
+    // model, but for the part of the cloud behind the lit face, under 10⁻³ here at g = 0.9:
+    // see the isotropic slab below), so the light on every plane behind the entry is the
+    // light that entered. The Monte Carlo slab sends part of it back (reflected) from deeper
+    // in, which the spread mode, carrying scattered light forward with the beams, cannot:
+    // reported, not asserted.
     let mut gpu = Gpu::new();
     let (b, g) = (0.1f32, 0.9f32);
     let s = setup(slab_volume(None), medium_tf(0.0, b, g), MultipleScattering::Spread);
@@ -147,6 +150,79 @@ fn a_conservative_slab_passes_on_all_the_light_it_receives() {
         assert!((mean - 1.0).abs() < 0.03, "light {mean} at depth {at}");
     }
     assert!(mc.transmitted + mc.reflected > 0.98 && mc.reflected > 0.0, "{mc:?}");
+}
+
+/// The light on a plane `depth` voxels into a conservative slab lit head-on (unscattered plus
+/// scattered) as the spread mode steps it, by the CPU's moments: each step the cloud loses the
+/// share that came to lie behind the lit face since the step before
+/// (`SpreadMoments::behind_entry`).
+fn kept_light(b: f64, g: f64, depth: f64) -> f64 {
+    let (mut m, mut unscattered, mut scattered, mut behind) = (SpreadMoments::default(), 1.0f64, 0.0f64, 0.0f64);
+    let steps = (depth / 0.5).round().max(1.0) as usize;
+    let h = depth / steps as f64;
+    for k in 1..=steps {
+        m.step(b, g, h);
+        let now = m.behind_entry(k as f64 * h, 1.0);
+        let left = (now - behind).max(0.0) / (1.0 - behind).max(1e-6);
+        let through = unscattered * (-b * h).exp();
+        scattered = scattered * (1.0 - left) + (unscattered - through);
+        unscattered = through;
+        behind = now;
+    }
+    unscattered + scattered
+}
+
+/// The mean light the light view shows within 6 voxels of the slab's axis on `plane`.
+fn slab_light(gpu: &mut Gpu, s: &SlabSetup, plane: &slab::SlabPlane) -> f64 {
+    let (axis, vpp) = s.axis_pixel();
+    let img = ScalarImage::from_image(
+        &gpu.debug(&s.prepared, N as u32, DebugView::Light, plane.depth).image,
+        1,
+    );
+    let (sum, _) = light_moments(&img, axis, vpp, 6.0);
+    let (area, _) = light_moments(&ScalarImage::from_fn(N, N, |_, _| 1.0), axis, vpp, 6.0);
+    sum / area
+}
+
+#[test]
+fn an_isotropic_slab_lets_out_of_its_lit_face_what_the_spread_moments_put_behind_it() {
+    // Albedo 1, no absorption, lit all over and head-on, b = 0.1: with g = 0 the scattered
+    // light soon turns back, and the part of the cloud behind the lit face leaves
+    // (`spread_behind`); with g = 0.9 hardly any of it is behind the face at these depths.
+    // The ratio of the two slabs' light on the same plane takes out what both lose to the
+    // beams' f16 power and the albedo table (the conservative slab's 1.5–1.8 %), and is the
+    // ratio of what the moments keep.
+    let mut gpu = Gpu::new();
+    let b = 0.1f32;
+    let isotropic = setup(slab_volume(None), medium_tf(0.0, b, 0.0), MultipleScattering::Spread);
+    let forward = setup(slab_volume(None), medium_tf(0.0, b, 0.9), MultipleScattering::Spread);
+    let mc = slab_balance(&reference_slab(0.0, b, 0.0), 50_000, 23);
+    for z in [20.0, 36.0] {
+        let plane = isotropic.plane_near(z);
+        let depth = (plane.voxel_z - ENTRY) as f64;
+        let (iso, fwd) = (
+            slab_light(&mut gpu, &isotropic, &plane),
+            slab_light(&mut gpu, &forward, &plane),
+        );
+        let (kept_iso, kept_fwd) = (kept_light(b as f64, 0.0, depth), kept_light(b as f64, 0.9, depth));
+        let (ratio, expected) = (iso / fwd, kept_iso / kept_fwd);
+        eprintln!(
+            "depth {depth:.1}: light g = 0: {iso:.4}, g = 0.9: {fwd:.4}, ratio {ratio:.4}; moments {kept_iso:.4} and {kept_fwd:.4}, ratio {expected:.4}; Monte Carlo slab (g = 0) reflects {:.4}",
+            mc.reflected
+        );
+        // Measured 0.998 and 0.987 of the moments' ratio (were no light to leave, 1.036 and
+        // 1.099). Bound 3 %: the 1.3 % at 32 voxels is not traced; the isotropic light
+        // spreads wider, and light beyond the frame's edges is dropped (what brings the
+        // g = 0.9 slab's light to 0.84 at 56 voxels), and the beams count their path since
+        // the face from the plane where they meet it.
+        assert!(
+            (ratio / expected - 1.0).abs() < 0.03,
+            "ratio {ratio} vs {expected} at depth {depth}"
+        );
+        // Some light leaves, less than the whole slab reflects (the face lets out the least
+        // it can).
+        assert!(kept_iso < 0.97 && 1.0 - kept_iso < mc.reflected, "{kept_iso} vs {mc:?}");
+    }
 }
 
 #[test]

@@ -303,7 +303,7 @@ impl State {
                 LIGHT_RING * pyramid_texels(view.width, view.height, levels) * layout.channels as u64 * 4,
                 beams && (refraction || features.scatter),
             ),
-            ("beam_scatter", 2 * cells * 32, features.scatter),
+            ("beam_scatter", 2 * cells * 48, features.scatter),
             ("back_light", LIGHT_RING * cells * rgba, !beams),
             ("back_dir", LIGHT_RING * cells * 16, back_dir),
             ("image_out", pixels * 16, true),

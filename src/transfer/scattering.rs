@@ -68,60 +68,120 @@ pub fn premoze_eq18(a: f64, b: f64, theta2: f64, s: f64) -> f64 {
 /// about the beam, summed over both axes). In a homogeneous medium R(s) is the closed form
 /// the Monte Carlo reference checks against. s is the path length; absorption thins all
 /// paths of one length alike and leaves the moments alone.
+///
+/// Along the beam, with w = s − z a photon's lag behind the beam (dw/ds = 1 − μ, μ = cos θ)
+/// and P₁ = E[μ] (dP₁/ds = −k₁P₁):
+///
+///   dE[w]/ds = 1 − P₁,  dE[wμ]/ds = P₁ − (1 + 2P₂)/3 − k₁E[wμ],  dE[w²]/ds = 2(E[w] − E[wμ]),
+///
+/// which the spread mode uses for how much of its light is back behind the face it entered
+/// by (`shaders/beams.wgsl`, `spread_behind`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SpreadMoments {
+    pub p1: f64,
     pub p2: f64,
     pub cross: f64,
     pub r2: f64,
+    /// E[w], the light's mean lag behind the beam.
+    pub lag: f64,
+    /// E[w·μ].
+    pub lag_cos: f64,
+    /// E[w²].
+    pub lag2: f64,
+    /// The scattering optical depth ∫b ds: 1 − e^(−∫b ds) of the light has scattered.
+    pub scattering_depth: f64,
 }
 
 impl Default for SpreadMoments {
     /// A collimated beam: all light along it, no spread.
     fn default() -> Self {
         SpreadMoments {
+            p1: 1.0,
             p2: 1.0,
             cross: 0.0,
             r2: 0.0,
+            lag: 0.0,
+            lag_cos: 0.0,
+            lag2: 0.0,
+            scattering_depth: 0.0,
         }
     }
 }
 
 impl SpreadMoments {
     /// Advances by path length `ds` through scattering `b` (per unit length) with
-    /// anisotropy `g`: P₂ exactly, C and R by classical Runge–Kutta in sub-steps of at most
-    /// a twentieth of the fastest relaxation length (relative error of R below 10⁻³; about
-    /// 10⁻⁴ in the tests).
+    /// anisotropy `g`: P₁ and P₂ exactly, the others by classical Runge–Kutta in sub-steps of
+    /// at most a twentieth of the fastest relaxation length (relative error of R below 10⁻³;
+    /// about 10⁻⁴ in the tests).
     pub fn step(&mut self, b: f64, g: f64, ds: f64) {
-        if b <= 0.0 || ds <= 0.0 {
-            self.r2 += 2.0 * self.cross * ds.max(0.0);
-            return;
-        }
-        let (k1, k2) = (b * (1.0 - g), b * (1.0 - g * g));
+        let ds = ds.max(0.0);
+        let (k1, k2) = if b > 0.0 {
+            (b * (1.0 - g), b * (1.0 - g * g))
+        } else {
+            (0.0, 0.0)
+        };
         let n = ((k1.max(k2) * ds / 0.05).ceil() as usize).max(1);
         let h = ds / n as f64;
-        let p2_at = |p0: f64, t: f64| p0 * (-k2 * t).exp();
         for _ in 0..n {
-            let p0 = self.p2;
-            // y = (C, R); y' = ((2/3)(1 − P₂(t)) − k₁C, 2C).
-            let f = |t: f64, c: f64| (2.0 / 3.0) * (1.0 - p2_at(p0, t)) - k1 * c;
-            let c = self.cross;
-            let (kc1, kr1) = (f(0.0, c), 2.0 * c);
-            let c2 = c + 0.5 * h * kc1;
-            let (kc2, kr2) = (f(0.5 * h, c2), 2.0 * c2);
-            let c3 = c + 0.5 * h * kc2;
-            let (kc3, kr3) = (f(0.5 * h, c3), 2.0 * c3);
-            let c4 = c + h * kc3;
-            let (kc4, kr4) = (f(h, c4), 2.0 * c4);
-            self.cross = c + h / 6.0 * (kc1 + 2.0 * kc2 + 2.0 * kc3 + kc4);
-            self.r2 += h / 6.0 * (kr1 + 2.0 * kr2 + 2.0 * kr3 + kr4);
-            self.p2 = p2_at(p0, h);
+            let (p1, p2) = (self.p1, self.p2);
+            // y = (C, R, E[w], E[wμ], E[w²]) with P₁, P₂ exact along the sub-step.
+            let f = |t: f64, y: [f64; 5]| {
+                let (p1t, p2t) = (p1 * (-k1 * t).exp(), p2 * (-k2 * t).exp());
+                [
+                    (2.0 / 3.0) * (1.0 - p2t) - k1 * y[0],
+                    2.0 * y[0],
+                    1.0 - p1t,
+                    p1t - (1.0 + 2.0 * p2t) / 3.0 - k1 * y[3],
+                    2.0 * (y[2] - y[3]),
+                ]
+            };
+            let add = |y: [f64; 5], k: [f64; 5], a: f64| std::array::from_fn::<f64, 5, _>(|i| y[i] + a * k[i]);
+            let y = [self.cross, self.r2, self.lag, self.lag_cos, self.lag2];
+            let ka = f(0.0, y);
+            let kb = f(0.5 * h, add(y, ka, 0.5 * h));
+            let kc = f(0.5 * h, add(y, kb, 0.5 * h));
+            let kd = f(h, add(y, kc, h));
+            let y: [f64; 5] = std::array::from_fn(|i| y[i] + h / 6.0 * (ka[i] + 2.0 * kb[i] + 2.0 * kc[i] + kd[i]));
+            [self.cross, self.r2, self.lag, self.lag_cos, self.lag2] = y;
+            self.p1 = p1 * (-k1 * h).exp();
+            self.p2 = p2 * (-k2 * h).exp();
         }
+        self.scattering_depth += b.max(0.0) * ds;
+    }
+
+    /// The share of the scattered light (not the unscattered) that lies behind the face the
+    /// beam entered the medium by, `path` before (its path since then) at `cos_entry` to the
+    /// face's normal: a Gaussian of the light's depth below the face, mean (path − E[w])·cos θ
+    /// over the scattered fraction, variance Var[w]·cos²θ + (R/2)·sin²θ. The spread mode lets
+    /// what comes to lie there leave (`spread_behind` in shaders/beams.wgsl, which this
+    /// mirrors, with the same fit of the normal distribution's tail).
+    pub fn behind_entry(&self, path: f64, cos_entry: f64) -> f64 {
+        let frac = 1.0 - (-self.scattering_depth).exp();
+        if frac < 1e-6 {
+            return 0.0;
+        }
+        let mean_w = self.lag / frac;
+        let var_w = (self.lag2 / frac - mean_w * mean_w).max(0.0);
+        let var_t = 0.5 * self.r2 / frac;
+        let c = cos_entry;
+        let depth = (path - mean_w) * c;
+        let var_n = var_w * c * c + var_t * (1.0 - c * c);
+        if var_n <= 0.0 {
+            return if depth < 0.0 { 1.0 } else { 0.0 };
+        }
+        normal_tail(depth / var_n.sqrt())
     }
 
     /// Variance of the light's position per axis about the beam.
     pub fn variance_per_axis(&self) -> f64 {
         0.5 * self.r2
     }
+}
+
+/// Φ(−x), the normal distribution's tail beyond x: Bowling et al. 2009's logistic fit to the
+/// normal CDF (error below 1.4·10⁻⁴), as the GPU evaluates it.
+fn normal_tail(x: f64) -> f64 {
+    1.0 / (1.0 + (1.5976 * x + 0.070566 * x * x * x).clamp(-80.0, 80.0).exp())
 }
 
 /// The GPU's scattering table: per data value (TABLE_SIZE entries over [0, 1], the same
@@ -182,6 +242,25 @@ mod tests {
             assert!((ratio - 2.0 / 3.0).abs() < 1e-12, "{ratio}");
         }
         assert_eq!(premoze_eq1(0.1, 0.0, t2, s), 0.0);
+    }
+
+    #[test]
+    fn the_share_behind_the_face_grows_with_the_path_and_the_slant() {
+        // Before anything scatters there is no cloud; the tail fit is Φ(−x) within 1.4·10⁻⁴
+        // (Φ(−1) = 0.158655, Φ(0) = 0.5); a beam entering at a slant puts more of its light
+        // behind the face than one entering head-on, and the share grows as the cloud spreads.
+        assert_eq!(SpreadMoments::default().behind_entry(0.0, 1.0), 0.0);
+        assert!((normal_tail(1.0) - 0.158655).abs() < 1.4e-4);
+        assert!((normal_tail(0.0) - 0.5).abs() < 1e-12);
+        let mut m = SpreadMoments::default();
+        let mut previous = 0.0;
+        for step in 1..=20 {
+            m.step(0.25, 0.6, 1.0);
+            let path = step as f64;
+            let (head_on, slant) = (m.behind_entry(path, 1.0), m.behind_entry(path, 0.34));
+            assert!(slant > head_on && head_on >= previous, "{path}: {head_on} {slant}");
+            previous = head_on;
+        }
     }
 
     #[test]
