@@ -16,25 +16,33 @@ pub struct Level {
     pub scale: f32,
     /// Factor on the scene's sample distance (fewer planes).
     pub step_factor: f32,
+    /// Factor on the scene's beams per texel (a coarser light grid; at least
+    /// `MIN_BEAMS_PER_TEXEL`).
+    pub beams_factor: f32,
 }
 
 /// Coarse to fine; the last is the full-quality frame.
 pub const LEVELS: [Level; 3] = [
     Level {
         name: "interactive",
-        // 128×96 at a 1024×768 viewport: about a second per frame on lavapipe with 2 cores.
+        // 128×96 at a 1024×768 viewport: 0.2–0.3 s per frame on the CT head with every effect
+        // on lavapipe with 2 cores. Half the beams per texel: at this size the light grid
+        // (which covers more than the image) is about half the frame's time.
         scale: 0.125,
         step_factor: 4.0,
+        beams_factor: 0.5,
     },
     Level {
         name: "preview",
         scale: 0.5,
         step_factor: 2.0,
+        beams_factor: 1.0,
     },
     Level {
         name: "full",
         scale: 1.0,
         step_factor: 1.0,
+        beams_factor: 1.0,
     },
 ];
 
@@ -288,5 +296,6 @@ mod tests {
         assert_eq!(LEVELS[FULL].size(1024, 768), (1024, 768));
         assert_eq!(LEVELS[0].size(2, 2), (1, 1));
         assert_eq!(LEVELS[FULL].step_factor, 1.0);
+        assert_eq!(LEVELS[FULL].beams_factor, 1.0);
     }
 }

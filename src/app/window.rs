@@ -206,6 +206,8 @@ impl App {
             let level = LEVELS[job.level];
             let mut scene = self.last_scene.clone();
             scene.quality.sample_distance = (scene.quality.sample_distance * level.step_factor).min(16.0);
+            scene.quality.beams_per_texel =
+                (scene.quality.beams_per_texel * level.beams_factor).max(crate::scene::MIN_BEAMS_PER_TEXEL);
             let scale = if job.level == FULL { 1.0 } else { level.scale };
             let (w, h) = (
                 ((render_size.0 as f32 * scale).round() as u32).max(1),
