@@ -433,18 +433,6 @@ fn deposited_at(slot: u32, t: vec2<f32>) -> LightSample {
     return sum;
 }
 
-// Zeroes what pixel px of slot `slot` reads: its texel on every level (coarse texels are
-// zeroed by each pixel they cover).
-fn acc_clear(slot: u32, px: vec2<u32>) {
-    let channels = P.tiles.w;
-    for (var m = 0u; m < acc_levels(); m++) {
-        let base = acc_texel(slot, m, px >> vec2<u32>(m));
-        for (var c = 0u; c < channels; c++) {
-            atomicStore(&light_acc[base + c], 0u);
-        }
-    }
-}
-
 // The part of plane-0 cell power a beam deposits on plane z, per unit of its footprint: the
 // cell's area over a pixel's area on that plane (both in view units²). For the image the
 // light is fluence (what particles scatter: irradiance over the beam's cosine, relative to

@@ -74,17 +74,10 @@ fn view_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_ind
     }
 }
 
-// Whether the tiles pass clears deposits (beams with refraction or scattering deposit their
-// light): then it runs one workgroup per rect tile, one invocation per pixel; otherwise one
-// invocation per tile (`tile_groups` in state.rs), since a workgroup whose invocations have
-// nothing to do still costs its launch on a CPU driver (at 256², 1024 of them per plane took
-// a tenth of a plain render).
-fn tiles_clear_deposits() -> bool {
-    return BEAMS && (REFRACTION || SCATTER);
-}
-
-// Per rect tile: the pixels clear the light slot the next plane deposits into, and the tile
-// is listed for plane k+1 if it needs it: a ray alive whose next segment (or the one after,
+// Per rect tile, one invocation each (a workgroup whose invocations have nothing to do still
+// costs its launch on a CPU driver: at 256², 1024 of them per plane took a tenth of a plain
+// render; the slot the next plane deposits into is cleared by a buffer fill): the tile is
+// listed for plane k+1 if it needs it: a ray alive whose next segment (or the one after,
 // so that a ray is stepped onto the plane before it has something to composite) meets a
 // visible brick (with refraction, or one where η changes) along the rays' primary lines. Rays
 // once bent can be anywhere: their tile (VIEW_TILE_BENT) only needs a ray alive. Written while
@@ -94,36 +87,19 @@ fn tiles_clear_deposits() -> bool {
 fn tiles_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
     let k = dispatch_plane(wg);
     let group = wg.y * P.tiles.z + wg.x;
-    var t = group * TILE * TILE + li;
-    if (tiles_clear_deposits()) {
-        t = group;
-    }
+    let t = group * TILE * TILE + li;
     if (t >= P.tiles.y) {
         if (BEAMS && light_tiles_listed()) {
             // The workgroups after the view tiles' list the light tiles of plane k+1, one per
             // invocation (plane k's light is complete: a barrier separates this pass from
             // it). The list after next starts empty (its last reader was plane k's light).
-            var lt = t - P.tiles.y;
-            if (tiles_clear_deposits()) {
-                lt = lt * TILE * TILE + li;
-            }
+            let lt = t - P.tiles.y;
             if (lt < 2u) {
                 atomicStore(&light_args[((k % 2u) * 2u + lt) * 3u], 0u);
             }
             list_light_tile(lt, k + 1u);
         }
         return;
-    }
-    if (tiles_clear_deposits()) {
-        // Plane k+1 deposits into the slot that plane k-2 used; its last reader was the view
-        // dispatch of plane k-1. Every tile clears, listed or not: deposits land anywhere.
-        let px = tile_pixel(t, li);
-        if (in_rect(vec2<i32>(px))) {
-            acc_clear((k + 1u) % 3u, px);
-        }
-        if (li != 0u) {
-            return;
-        }
     }
     if (P.culling.w == 0u) {
         return;

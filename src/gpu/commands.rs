@@ -320,6 +320,35 @@ impl<'r> Recorder<'r> {
         );
     }
 
+    /// Fills `size` bytes of `dst` from byte `offset` with a repeated 32-bit word, after the
+    /// compute work recorded before it has finished with them, and makes the fill visible to
+    /// compute shaders. Fails when the range is not whole words inside the buffer.
+    pub fn fill_range(&mut self, dst: &'r Buffer, offset: u64, size: u64, word: u32) -> Result<(), GpuError> {
+        if offset % 4 != 0 || size % 4 != 0 || offset + size > dst.size {
+            return Err(GpuError::Shader {
+                name: "fill".into(),
+                message: format!("{size} bytes at byte {offset} of a {}-byte buffer", dst.size),
+            });
+        }
+        self.memory_barrier(
+            vk::PipelineStageFlags::COMPUTE_SHADER,
+            vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE,
+            vk::PipelineStageFlags::TRANSFER,
+            vk::AccessFlags::TRANSFER_WRITE,
+        );
+        // SAFETY: recording state; the buffer is borrowed for 'r, so it outlives the
+        // submission, was created with TRANSFER_DST (`Buffer::new_storage`), and the range is
+        // whole words inside it (checked above).
+        unsafe { self.d().cmd_fill_buffer(self.cmd, dst.raw, offset, size, word) };
+        self.memory_barrier(
+            vk::PipelineStageFlags::TRANSFER,
+            vk::AccessFlags::TRANSFER_WRITE,
+            vk::PipelineStageFlags::COMPUTE_SHADER,
+            vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE,
+        );
+        Ok(())
+    }
+
     /// Fills a buffer with a repeated 32-bit word and makes the fill visible to compute shaders.
     pub fn fill(&mut self, dst: &'r Buffer, word: u32) {
         // SAFETY: recording state; the buffer is borrowed for 'r, so it outlives the

@@ -100,17 +100,10 @@ fn pyramid_texels(w: u32, h: u32, levels: u32) -> u64 {
 }
 
 /// Workgroups of the tiles pass for `view_groups` rect tiles and `light_tiles` light tiles to
-/// list: one per rect tile where it clears the deposits pixel by pixel (beams with refraction
-/// or scattering), else one invocation per rect tile (`tiles_clear_deposits` in sweep.wgsl);
-/// then one invocation per light tile.
-fn tile_groups(features: &Features, view_groups: u32, light_tiles: u32) -> u32 {
-    let per_group = Pass::TILE * Pass::TILE;
-    let clears = features.transport == LightTransport::Beams && (features.refraction || features.scatter);
-    if clears {
-        view_groups + light_tiles.div_ceil(per_group)
-    } else {
-        (view_groups + light_tiles).div_ceil(per_group)
-    }
+/// list: one invocation per rect tile, then one per light tile (a workgroup whose invocations
+/// have nothing to do still costs its launch on a CPU driver).
+fn tile_groups(view_groups: u32, light_tiles: u32) -> u32 {
+    (view_groups + light_tiles).div_ceil(Pass::TILE * Pass::TILE)
 }
 
 /// Workgroups of a dispatch laid out in rows of `MAX_GROUPS_PER_ROW` (the shaders linearise
@@ -525,11 +518,15 @@ pub(super) fn run(
     // The tiles pass also lists the next plane's light tiles, one per invocation after the
     // view tiles'.
     let tile_groups = tile_groups(
-        &features,
         layout.view_groups,
         if layout.light_lists { layout.beam_groups } else { 0 },
     );
     let finish_groups = [tiles(w), tiles(h), 1];
+    // Beams that deposit their light (refraction, the spread mode) fill a ring of slots, one
+    // per plane: each is cleared before the plane that deposits into it.
+    let light_acc = state.get("light_acc")?;
+    let deposit_slot_bytes = (features.transport == LightTransport::Beams && (features.refraction || features.scatter))
+        .then_some(light_acc.size / LIGHT_RING);
     let texels_per_plane = (layout.grid.count() + view.rect.width() as u64 * view.rect.height() as u64).max(1);
     let diagnoses_light = matches!(
         req.debug_view,
@@ -609,6 +606,11 @@ pub(super) fn run(
                 r.compute_to_compute();
             }
             r.dispatch(&pipelines[3], &sets[3], p, groups(tile_groups))?;
+            if let Some(bytes) = deposit_slot_bytes {
+                // Plane k+1 deposits into the slot plane k-2 used, whose last reader was the
+                // view dispatch of plane k-2 (recorded before this plane's).
+                r.fill_range(light_acc, ((plane as u64 + 1) % LIGHT_RING) * bytes, bytes, 0)?;
+            }
             r.compute_to_indirect();
             plane += 1;
         }
