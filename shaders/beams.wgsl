@@ -447,8 +447,28 @@ fn deposit_scale(z: f32, d: vec3<f32>) -> f32 {
 
 // Deposits a beam on plane k with the footprint spanned by its neighbours' positions (half
 // the distance to each neighbour on either side, in plane-k pixels).
+// Whether a view sample may read what a beam at p deposits up to `reach` (view units) around
+// it: p is in a cell of `deposit_cells` (every cell within the view's reading margin and a
+// straight beam's reach of one where the light can change), or its deposit reaches further
+// than that; elsewhere no view sample composites anything or carries the light on to a
+// segment that does.
+fn deposit_read(p: vec3<f32>, reach: f32) -> bool {
+    let size = vec3<u32>(deposit_cells[0], deposit_cells[1], deposit_cells[2]);
+    if (size.x == 0u || reach > bitcast<f32>(deposit_cells[3])) {
+        return true;
+    }
+    let offset = vec3<f32>(f32(deposit_cells[4]), f32(deposit_cells[5]), f32(deposit_cells[6]));
+    let per_unit = vec3<f32>(bitcast<f32>(deposit_cells[8]), bitcast<f32>(deposit_cells[9]), bitcast<f32>(deposit_cells[10]));
+    let g = floor(volume_coord(p) * per_unit + offset);
+    if (any(g < vec3<f32>(0.0)) || any(g >= vec3<f32>(size))) {
+        return false;
+    }
+    let c = vec3<u32>(g);
+    return deposit_cells[12u + (c.z * size.y + c.y) * size.x + c.x] != 0u;
+}
+
 fn deposit_beam(k: u32, b: Beam, du: vec3<f32>, dv: vec3<f32>, seed: u32) {
-    if (max(b.power.r, max(b.power.g, b.power.b)) <= 0.0) {
+    if (max(b.power.r, max(b.power.g, b.power.b)) <= 0.0 || !deposit_read(b.pos, deposit_reach(b.pos, du, dv))) {
         return;
     }
     let c = project(b.pos) + vec2<f32>(0.5);

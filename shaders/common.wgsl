@@ -182,6 +182,12 @@ const VIEW_TILE_BENT: u32 = 0x80000000u;
 @group(0) @binding(30) var<storage, read_write> light_alive: array<atomic<u32>>;
 @group(0) @binding(31) var<storage, read_write> light_lists: array<u32>;
 @group(0) @binding(32) var<storage, read_write> light_args: array<atomic<u32>>;
+// Beams with refraction and light tiles listed (`occupancy::Grown::words`): the cells within
+// the view's reading margin and a straight beam's deposit reach of a cell where the light can
+// change, where the beams deposit. A header (cells along x, y, z; that deposit reach in view
+// units as f32 bits; the padding before cell 0; cells per texture unit as f32 bits) and one
+// word per cell; cells along x 0: every beam deposits.
+@group(0) @binding(33) var<storage, read> deposit_cells: array<u32>;
 
 var<immediate> I: Immediates;
 

@@ -138,6 +138,64 @@ pub struct Grown {
 }
 
 impl Grown {
+    /// The grid as the shaders read it (`deposit_cells` in common.wgsl): a header of cells
+    /// along each axis (and a word for the caller), the padding before cell 0 and cells per
+    /// texture unit (as f32 bits),
+    /// then one word per cell (x fastest), 1 where occupied. `others` (grown by the same
+    /// margin over the same box, e.g. the η grid of other dims) are merged in: a cell counts
+    /// where any of theirs that overlaps it does.
+    pub fn words(&self, others: &[Grown]) -> Vec<u32> {
+        let [sx, sy, sz] = self.size;
+        let mut words = vec![
+            sx as u32,
+            sy as u32,
+            sz as u32,
+            0,
+            self.offset[0] as u32,
+            self.offset[1] as u32,
+            self.offset[2] as u32,
+            0,
+            self.per_unit[0].to_bits(),
+            self.per_unit[1].to_bits(),
+            self.per_unit[2].to_bits(),
+            0,
+        ];
+        words.reserve(sx * sy * sz);
+        for z in 0..sz {
+            for y in 0..sy {
+                for x in 0..sx {
+                    let c = [x, y, z];
+                    let mut occupied = self.flags[(z * sy + y) * sx + x];
+                    if !occupied {
+                        // The cell's box in texture coordinates, then in each other grid.
+                        let lo = [0, 1, 2].map(|a| (c[a] as f32 - self.offset[a] as f32) / self.per_unit[a]);
+                        let hi = [0, 1, 2].map(|a| (c[a] as f32 + 1.0 - self.offset[a] as f32) / self.per_unit[a]);
+                        occupied = others.iter().any(|o| o.any_in(lo, hi));
+                    }
+                    words.push(u32::from(occupied));
+                }
+            }
+        }
+        words
+    }
+
+    /// Whether an occupied cell overlaps the box [lo, hi] (texture coordinates).
+    fn any_in(&self, lo: [f32; 3], hi: [f32; 3]) -> bool {
+        let range = |a: usize| {
+            let g = |t: f32| t * self.per_unit[a] + self.offset[a] as f32;
+            let first = g(lo[a]).floor().max(0.0) as usize;
+            let last = (g(hi[a]).ceil().max(0.0) as usize).min(self.size[a]);
+            first..last
+        };
+        let (xs, ys) = (range(0), range(1));
+        range(2).any(|z| {
+            ys.clone().any(|y| {
+                xs.clone()
+                    .any(|x| self.flags[(z * self.size[1] + y) * self.size[0] + x])
+            })
+        })
+    }
+
     /// The part of the line q0 + dq·s, s in [s0, s1] (texture coordinates), that passes
     /// through occupied cells: from where it enters the first to where it leaves the last
     /// (cells traversed exactly, Amanatides and Woo), or None.
@@ -245,6 +303,41 @@ mod tests {
             (s0 - 1.0 / 8.0).abs() < 1e-5 && (s1 - 6.0 / 8.0).abs() < 1e-5,
             "{s0} {s1}"
         );
+    }
+
+    /// The words the shaders read: the header, the grid's own cells, and a finer grid's
+    /// occupied cell merged into the coarse cell it overlaps.
+    #[test]
+    fn the_deposit_grid_merges_grids_of_other_dims() {
+        let mut coarse = Occupancy {
+            flags: vec![false; 8 * 8 * 8],
+            cells: [8, 8, 8],
+            voxels: [32, 32, 32],
+        };
+        coarse.flags[(5 * 8 + 4) * 8 + 3] = true;
+        // Twice the voxels over the same box: its cell (12, 2, 2) is the coarse cell (6, 1, 1).
+        let mut fine = Occupancy {
+            flags: vec![false; 16 * 16 * 16],
+            cells: [16, 16, 16],
+            voxels: [64, 64, 64],
+        };
+        fine.flags[(2 * 16 + 2) * 16 + 12] = true;
+        let margin = [0.5 / 8.0; 3]; // half a coarse cell: one cell each way on both grids
+        let words = coarse.grown(margin).words(&[fine.grown(margin)]);
+        assert_eq!(&words[..8], &[10, 10, 10, 0, 1, 1, 1, 0]);
+        assert_eq!(f32::from_bits(words[8]), 8.0);
+        let at = |c: [usize; 3]| words[12 + ((c[2] + 1) * 10 + c[1] + 1) * 10 + c[0] + 1];
+        // The coarse grid's cell, grown by one.
+        assert_eq!(at([3, 4, 5]), 1);
+        assert_eq!(at([2, 3, 4]), 1);
+        assert_eq!(at([1, 4, 5]), 0);
+        // The fine cell grown by one fine cell (half a coarse one) on each side overlaps the
+        // coarse cells 5..=6 along x and 0..=1 along y and z.
+        assert_eq!(at([6, 1, 1]), 1);
+        assert_eq!(at([5, 0, 0]), 1);
+        assert_eq!(at([7, 1, 1]), 0);
+        assert_eq!(at([6, 2, 1]), 0);
+        assert_eq!(words.len(), 12 + 1000);
     }
 
     #[test]

@@ -410,20 +410,26 @@ pub(super) fn run(
     let cached = cache
         .as_ref()
         .ok_or_else(|| RenderError::Setup("internal: scene textures missing".into()))?;
+    // Without a grid of cells to read, every beam deposits (`deposit_read` in beams.wgsl).
+    let mut deposit_cells = vec![0u32; 12];
     let (light_box, light_margin, spans) = if layout.light_lists {
         let (every, straight) = light_tiles::margins(&view, &grid, scene.quality.sample_distance, features.refraction);
         let scale = light_tiles::texture_scale(&view);
-        let mut spans = light_tiles::spans(
-            &view,
-            &grid,
-            light,
-            scale.map(|s| s * straight),
-            &cached.textures.occupancy,
-        );
+        let occupancy = &cached.textures.occupancy;
+        let mut spans = light_tiles::spans(&view, &grid, light, scale.map(|s| s * straight), occupancy);
         if features.refraction {
             // Bent beams end where the device finds they can no longer reach the box
             // (`light_alive`); the straight lines' last planes do not bound them.
             spans.iter_mut().for_each(|s| s[2] = 0);
+            // A beam deposits only where a view sample can read it: within the margin of an
+            // occupied cell that covers what a view sample reads and a straight beam's
+            // deposit reach (`straight`); a beam whose deposit reaches further (spread by
+            // refraction) always deposits.
+            let grown: Vec<_> = occupancy.iter().map(|o| o.grown(scale.map(|s| s * straight))).collect();
+            if let Some((first, others)) = grown.split_first() {
+                deposit_cells = first.words(others);
+                deposit_cells[3] = (straight - every).to_bits();
+            }
         }
         ([scale[0], scale[1], scale[2], 1.0], every, spans)
     } else {
@@ -463,6 +469,7 @@ pub(super) fn run(
     let state = State::new(ctx, &view, &layout, &features, precision)?;
     let window_buffer = Buffer::new_storage_from(ctx, "light windows", bytemuck::cast_slice(&windows))?;
     let start_buffer = Buffer::new_storage_from(ctx, "light tile spans", bytemuck::cast_slice(&spans))?;
+    let deposit_buffer = Buffer::new_storage_from(ctx, "deposit cells", bytemuck::cast_slice(&deposit_cells))?;
     // ω and g per data value for the spread mode (a placeholder entry pair otherwise).
     let table = if features.scatter {
         crate::transfer::scattering::scattering_table(&prepared.tf)
@@ -490,6 +497,7 @@ pub(super) fn run(
             ("env_sampler", Resource::Sampler(&t.env_sampler)),
             ("light_window", Resource::Buffer(&window_buffer)),
             ("light_start", Resource::Buffer(&start_buffer)),
+            ("deposit_cells", Resource::Buffer(&deposit_buffer)),
             ("scatter_table", Resource::Buffer(&scatter_table)),
             ("bricks", Resource::Buffer(&t.bricks)),
             ("lbm_grid", Resource::Buffer(lbm_grid)),
