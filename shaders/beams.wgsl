@@ -161,15 +161,21 @@ fn load_stored_beam(ij: vec2<u32>, plane: u32, exact: bool) -> Beam {
     return b;
 }
 
-// How far around a beam's position (view units, on its plane at p) its deposit on the pyramid
-// and the view's bilinear reads of it reach, for a footprint spanned by du and dv: half the
-// footprint, plus a texel of its level and one of the reads' (`deposit`, `deposited_at`).
-fn deposit_reach(p: vec3<f32>, du: vec3<f32>, dv: vec3<f32>) -> f32 {
+// The footprint of a beam at p whose cell is spanned by du and dv, in plane pixels: the cell's
+// extent along each image axis (its second moments kept).
+fn footprint(p: vec3<f32>, du: vec3<f32>, dv: vec3<f32>) -> vec2<f32> {
     let pu = project(p + du) - project(p);
     let pv = project(p + dv) - project(p);
-    let widest = max(length(vec2<f32>(pu.x, pv.x)), length(vec2<f32>(pu.y, pv.y)));
+    return vec2<f32>(length(vec2<f32>(pu.x, pv.x)), length(vec2<f32>(pu.y, pv.y)));
+}
+
+// How far around a beam's position (view units, on its plane at depth z) its deposit on the
+// pyramid and the view's bilinear reads of it reach, for a footprint w (`footprint`): half the
+// footprint, plus a texel of its level and one of the reads' (`deposit`, `deposited_at`).
+fn deposit_reach(z: f32, w: vec2<f32>) -> f32 {
+    let widest = max(w.x, w.y);
     let m = min(u32(max(ceil(log2(max(widest, 1.0))), 0.0)), acc_levels() - 1u);
-    return (0.5 * widest + 2.0 * f32(1u << m)) * sqrt(pixel_area(p.z));
+    return (0.5 * widest + 2.0 * f32(1u << m)) * sqrt(pixel_area(z));
 }
 
 // Whether light tile `t` (x, y in tiles) is in the window of plane k (`light_windows` in
@@ -445,8 +451,6 @@ fn deposit_scale(z: f32, d: vec3<f32>) -> f32 {
     return s;
 }
 
-// Deposits a beam on plane k with the footprint spanned by its neighbours' positions (half
-// the distance to each neighbour on either side, in plane-k pixels).
 // Whether a view sample may read what a beam at p deposits up to `reach` (view units) around
 // it: p is in a cell of `deposit_cells` (every cell within the view's reading margin and a
 // straight beam's reach of one where the light can change), or its deposit reaches further
@@ -467,15 +471,14 @@ fn deposit_read(p: vec3<f32>, reach: f32) -> bool {
     return deposit_cells[12u + (c.z * size.y + c.y) * size.x + c.x] != 0u;
 }
 
-fn deposit_beam(k: u32, b: Beam, du: vec3<f32>, dv: vec3<f32>, seed: u32) {
-    if (max(b.power.r, max(b.power.g, b.power.b)) <= 0.0 || !deposit_read(b.pos, deposit_reach(b.pos, du, dv))) {
+// Deposits a beam on plane k with its footprint w (`footprint` of the cell spanned by its
+// neighbours' positions: half the distance to each neighbour on either side, in plane-k
+// pixels), which reaches `reach` around it (`deposit_reach`).
+fn deposit_beam(k: u32, b: Beam, w: vec2<f32>, reach: f32, seed: u32) {
+    if (max(b.power.r, max(b.power.g, b.power.b)) <= 0.0 || !deposit_read(b.pos, reach)) {
         return;
     }
     let c = project(b.pos) + vec2<f32>(0.5);
-    // Footprint edges: the cell's extent along each image axis (its second moments kept).
-    let pu = project(b.pos + du) - project(b.pos);
-    let pv = project(b.pos + dv) - project(b.pos);
-    let w = vec2<f32>(length(vec2<f32>(pu.x, pv.x)), length(vec2<f32>(pu.y, pv.y)));
     let d = light_direction(b.v);
     // The beam's cell on this plane, unrefracted (plane-0 pixels scale with depth in
     // perspective).
@@ -523,7 +526,8 @@ fn beams_init(ij: vec2<u32>) {
     let s = P.beam_origin.z;
     let du = unproject(vec2<f32>(s, 0.0), z0) - unproject(vec2<f32>(0.0), z0);
     let dv = unproject(vec2<f32>(0.0, s), z0) - unproject(vec2<f32>(0.0), z0);
-    deposit_beam(0u, b, du, dv, hash(index ^ 0x5bd1e995u));
+    let w = footprint(b.pos, du, dv);
+    deposit_beam(0u, b, w, deposit_reach(b.pos.z, w), hash(index ^ 0x5bd1e995u));
 }
 
 // What a beam needs of a neighbour (i, j) on the previous plane: its position drifted to
@@ -726,12 +730,17 @@ fn beams_step(ij: vec2<u32>, k: u32, tile: u32, mode: u32) {
     if (SCATTER) {
         spread_step(index, k, b, lost_before, x0, value_front, du, dv);
     }
+    // How far the deposit of the footprint on plane k reaches (the kick below turns the beam,
+    // it does not move it).
+    var reach = 0.0;
     if (REFRACTION) {
+        let w = footprint(b.pos, du, dv);
+        reach = deposit_reach(b.pos.z, w);
         var deposited = b;
         if (deposits_front_power()) {
             deposited.power = front;
         }
-        deposit_beam(k, deposited, du, dv, hash(index ^ hash(k ^ 0x5bd1e995u)));
+        deposit_beam(k, deposited, w, reach, hash(index ^ hash(k ^ 0x5bd1e995u)));
         let ix = index_at(b.pos);
         // Kick with the segment's path length (Eq. 8: v += Δs ∇η along the path).
         b.v = snell_renormalise(b.v + l * ix.grad, ix);
@@ -744,7 +753,7 @@ fn beams_step(ij: vec2<u32>, k: u32, tile: u32, mode: u32) {
     store_beam(index, k % 2u, k, b);
     if (REFRACTION && mode != LIGHT_WINDOW) {
         // A bent beam's end is found here; a straight one's on the CPU (`light_start.z`).
-        if (reaches_box(b.pos, light_direction(b.v), deposit_reach(b.pos, du, dv))) {
+        if (reaches_box(b.pos, light_direction(b.v), reach)) {
             atomicStore(&light_alive[tile], k);
         }
     }
