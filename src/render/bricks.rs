@@ -2,17 +2,19 @@
 //! brick is empty when, over the range of data values in it (one voxel wider on each side,
 //! what trilinear sampling reaches), the opacity is zero and the medium colour is white: a
 //! segment there composites nothing and lets all light through. The GPU skips tiles of view
-//! rays and light cells whose segment lies in empty bricks.
+//! rays whose next segments lie in empty bricks; with refraction the bricks where η changes
+//! count too (`add_refracting`), and a tile is skipped only until one of its rays is bent.
 
 use rayon::prelude::*;
 
+use super::occupancy::Occupancy;
 use crate::transfer::TransferFunctions;
 
 /// Voxels per brick edge.
 pub const BRICK: usize = 8;
 
-/// Per brick (x fastest): 1 if something in it absorbs or shows, else 0; and the brick
-/// counts along each axis.
+/// Per brick (x fastest): 1 if something in it absorbs or shows (or, after
+/// [`add_refracting`], η changes in it), else 0; and the brick counts along each axis.
 pub struct Bricks {
     pub flags: Vec<u32>,
     pub dims: [u32; 3],
@@ -47,37 +49,14 @@ pub fn clear_outside(tf: &TransferFunctions) -> bool {
     !visible(tf, 0.0, 0.0)
 }
 
-/// The bricks of a volume of `dims` voxels with 16-bit samples (0..65535 ↦ [0, 1]).
+/// The bricks of a volume of `dims` voxels with 16-bit samples (0..65535 ↦ [0, 1]): the
+/// cells of [`BRICK`] voxels whose particles absorb or show ([`Occupancy::visible`]; bricks at
+/// the volume's faces also reach the zero outside it).
 pub fn bricks(samples: &[u16], dims: [usize; 3], tf: &TransferFunctions) -> Bricks {
-    let nb = dims.map(|d| d.div_ceil(BRICK).max(1));
-    let [nx, ny, nz] = dims;
-    let flags: Vec<u32> = (0..nb[0] * nb[1] * nb[2])
-        .into_par_iter()
-        .map(|b| {
-            let (bx, by, bz) = (b % nb[0], (b / nb[0]) % nb[1], b / (nb[0] * nb[1]));
-            let range = |i: usize, n: usize| (i * BRICK).saturating_sub(1)..((i + 1) * BRICK + 1).min(n);
-            let (mut lo, mut hi) = (u16::MAX, 0u16);
-            for z in range(bz, nz) {
-                for y in range(by, ny) {
-                    let row = (z * ny + y) * nx;
-                    for x in range(bx, nx) {
-                        let v = samples[row + x];
-                        lo = lo.min(v);
-                        hi = hi.max(v);
-                    }
-                }
-            }
-            // Bricks at the volume's faces also reach the zero outside it.
-            let face = |i: usize, n: usize| i == 0 || (i + 1) * BRICK >= n;
-            if face(bx, nx) || face(by, ny) || face(bz, nz) {
-                lo = 0;
-            }
-            u32::from(lo <= hi && visible(tf, lo as f32 / 65535.0, hi as f32 / 65535.0))
-        })
-        .collect();
+    let cells = Occupancy::visible(samples, dims, tf, BRICK);
     Bricks {
-        flags,
-        dims: nb.map(|n| n as u32),
+        flags: cells.flags.iter().map(|&f| u32::from(f)).collect(),
+        dims: cells.cells.map(|n| n as u32),
     }
 }
 
@@ -104,9 +83,7 @@ pub fn add_refracting(bricks: &mut Bricks, dims: [usize; 3], texels: &[[half::f1
         let changes = range(bz, 2).any(|z| {
             range(by, 1).any(|y| {
                 let row = (z * gy + y) * gx;
-                texels[row + xs.start..row + xs.end]
-                    .iter()
-                    .any(|t| t[..3].iter().any(|g| g.to_f32() != 0.0))
+                texels[row + xs.start..row + xs.end].iter().any(super::gradient::bends)
             })
         });
         *flag = u32::from(changes);

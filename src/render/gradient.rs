@@ -70,6 +70,12 @@ pub fn gradient_volume(samples: &[u16], dims: [usize; 3], eta: &Curve, scheme: G
     out
 }
 
+/// Whether a texel of the gradient volume changes η there (∇η not zero; its w, η itself, may
+/// differ from the outside's in a uniform medium without bending anything).
+pub fn bends(texel: &[half::f16; 4]) -> bool {
+    texel[..3].iter().any(|g| g.to_f32() != 0.0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -1,12 +1,13 @@
 //! Light tiles listed per plane for the forward beams (`list_light_tile` in beams.wgsl): the
-//! margin around the volume's box within which beams are stepped, and the plane from which
-//! each tile of the light grid is, from the beams' straight lines. Outside the box nothing
-//! attenuates or bends a beam, so tiles far from it need not be stepped: on lavapipe only
-//! fewer workgroups save time (a CPU driver runs every branch a workgroup takes).
+//! margins around what can change the light within which beams are stepped, and the planes
+//! from which and (without refraction) until which each tile of the light grid is stepped,
+//! from the beams' straight lines through the occupied cells (`occupancy.rs`). Away from them
+//! nothing attenuates or bends a beam, so tiles far from them need not be stepped: on lavapipe
+//! only fewer workgroups save time (a CPU driver runs every branch a workgroup takes).
 
 use rayon::prelude::*;
 
-use super::occupancy::Occupancy;
+use super::occupancy::Grown;
 use super::shaders::Pass;
 use super::state::ACC_LEVELS;
 use crate::scene::view::{BeamGrid, ViewSetup};
@@ -49,24 +50,17 @@ pub fn texture_scale(view: &ViewSetup) -> [f32; 3] {
 }
 
 /// Per light tile: the first plane (at least 1) on which one of its beams, carried straight
-/// along the light from plane 0, is within the texture margin `margin` of an occupied cell
-/// (NEVER if on none); the smallest of those over the tile and its eight neighbours (the
-/// plane from which `light_tiles_main` steps it); and the last plane on which one of its
-/// beams is within the margin (0 if none). Beams bend only in occupied cells, so before the
-/// first of those planes every beam of the tile is still on its straight line, and without
-/// refraction after the last its light no longer changes.
-pub fn spans(
-    view: &ViewSetup,
-    grid: &BeamGrid,
-    light: glam::Vec3,
-    margin: [f32; 3],
-    occupancy: &[Occupancy],
-) -> Vec<[u32; 4]> {
+/// along the light from plane 0, is in an occupied cell of `grown` (the cells grown by the
+/// margin; NEVER if on none); the smallest of those over the tile and its eight neighbours
+/// (the plane from which `list_light_tile` steps it); and the last plane on which one of its
+/// beams is in one (0 if none). Beams bend only in occupied cells, so before the first of
+/// those planes every beam of the tile is still on its straight line, and without refraction
+/// after the last its light no longer changes.
+pub fn spans(view: &ViewSetup, grid: &BeamGrid, light: glam::Vec3, grown: &[Grown]) -> Vec<[u32; 4]> {
     let (tx, ty) = (
         grid.width.div_ceil(Pass::TILE) as usize,
         grid.height.div_ceil(Pass::TILE) as usize,
     );
-    let grown: Vec<_> = occupancy.iter().map(|o| o.grown(margin)).collect();
     let volume_from_view = view.volume_from_view();
     // Texture coordinates per unit of depth along the light.
     let dq = volume_from_view.transform_vector3(light / light.z);
@@ -83,7 +77,7 @@ pub fn spans(
                 let ndc = glam::Vec2::new((e.x - cx) / fx, (e.y - cy) / fy);
                 let scale = if view.perspective { view.z_first } else { 1.0 };
                 let q0 = volume_from_view.transform_point3(glam::Vec3::new(ndc.x * scale, ndc.y * scale, view.z_first));
-                for g in &grown {
+                for g in grown {
                     if let Some((s0, s1)) = g.span(q0, dq, 0.0, span) {
                         let t = &mut row[i as usize / Pass::TILE as usize];
                         t.0 = t.0.min(((s0 / view.step).floor() as u32).max(1));
@@ -118,7 +112,7 @@ pub fn spans(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::render::occupancy::CELL;
+    use crate::render::occupancy::{Occupancy, CELL};
     use crate::scene::builtin;
     use crate::scene::view::light_direction;
 
@@ -143,6 +137,7 @@ mod tests {
             flags: vec![false; cells[0] * cells[1] * cells[2]],
             cells,
             voxels,
+            edge: CELL,
         };
         let occupied = [[7, 5, 9], [0, 0, 0], [15, 3, 4]];
         for c in occupied {
@@ -157,7 +152,7 @@ mod tests {
                 })
             })
         };
-        let spans = spans(&view, &grid, light, margin, &[occupancy]);
+        let spans = spans(&view, &grid, light, &[occupancy.grown(margin)]);
         let tx = grid.width.div_ceil(Pass::TILE) as usize;
         let volume_from_view = view.volume_from_view();
         let (mut later, mut earlier) = (0, 0);

@@ -1,58 +1,68 @@
-//! Which cells of 4³ voxels can change the light: where particles absorb or show (the value
-//! range in the cell and one voxel around it, as the bricks) or where η changes (a gradient
-//! volume texel within a voxel of the cell is not zero). The light tiles of the beams start
-//! shortly before their first beam comes near such a cell and, without refraction, end
-//! shortly after their last beam has passed the last one (`light_tiles::spans`): a beam's
-//! light changes nowhere else. Kept on the CPU; a finer grid than the bricks, because the
-//! margin around it is added on top.
+//! Which cells of a volume can change the light: where particles absorb or show (the value
+//! range in the cell and one voxel around it) or where η changes (a gradient volume texel
+//! within a voxel of the cell is not zero). At 8³ voxels they are the bricks the view skips
+//! (`bricks.rs`); at 4³ ([`CELL`]) the light tiles of the beams start shortly before their
+//! first beam comes near such a cell and, without refraction, end shortly after their last
+//! beam has passed the last one (`light_tiles::spans`), and with refraction the beams deposit
+//! only near them: a beam's light changes nowhere else. The finer grid for the light, because
+//! its margin is added on top.
 
 use rayon::prelude::*;
 
 use crate::transfer::TransferFunctions;
 
-/// Voxels per cell edge.
+/// Voxels per cell edge of the light's grid.
 pub const CELL: usize = 4;
 
 /// Per cell (x fastest) whether something in it or within a voxel of it changes the light;
-/// the grid's cells along each axis and the voxels it covers.
+/// the grid's cells along each axis, the voxels it covers and the voxels per cell edge.
 #[derive(Clone, Debug)]
 pub struct Occupancy {
     pub flags: Vec<bool>,
     pub cells: [usize; 3],
     pub voxels: [usize; 3],
+    pub edge: usize,
 }
 
-/// The voxel range of cell `i` along an axis of `n` voxels, one voxel wider on each side.
-fn reach(i: usize, n: usize) -> std::ops::Range<usize> {
-    (i * CELL).saturating_sub(1)..((i + 1) * CELL + 1).min(n)
+/// The voxel range of cell `i` of `edge` voxels along an axis of `n` voxels, one voxel wider
+/// on each side (what trilinear sampling inside the cell reaches).
+fn reach(i: usize, n: usize, edge: usize) -> std::ops::Range<usize> {
+    (i * edge).saturating_sub(1)..((i + 1) * edge + 1).min(n)
 }
 
 impl Occupancy {
-    fn build(voxels: [usize; 3], cell: impl Fn([usize; 3]) -> bool + Sync) -> Occupancy {
-        let cells = voxels.map(|d| d.div_ceil(CELL).max(1));
+    fn build(voxels: [usize; 3], edge: usize, cell: impl Fn([usize; 3]) -> bool + Sync) -> Occupancy {
+        let cells = voxels.map(|d| d.div_ceil(edge).max(1));
         let flags = (0..cells[0] * cells[1] * cells[2])
             .into_par_iter()
             .map(|c| cell([c % cells[0], (c / cells[0]) % cells[1], c / (cells[0] * cells[1])]))
             .collect();
-        Occupancy { flags, cells, voxels }
+        Occupancy {
+            flags,
+            cells,
+            voxels,
+            edge,
+        }
     }
 
-    /// The cells whose particles absorb or show (16-bit samples, 0..65535 ↦ [0, 1]); cells at
-    /// the volume's faces also reach the value 0 outside it.
-    pub fn visible(samples: &[u16], dims: [usize; 3], tf: &TransferFunctions) -> Occupancy {
+    /// The cells of `edge` voxels whose particles absorb or show (16-bit samples, 0..65535 ↦
+    /// [0, 1]); cells at the volume's faces also reach the value 0 outside it.
+    pub fn visible(samples: &[u16], dims: [usize; 3], tf: &TransferFunctions, edge: usize) -> Occupancy {
         let [nx, ny, nz] = dims;
-        Self::build(dims, |[cx, cy, cz]| {
+        let reach = |i: usize, n: usize| reach(i, n, edge);
+        Self::build(dims, edge, |[cx, cy, cz]| {
             let (mut lo, mut hi) = (u16::MAX, 0u16);
+            let xs = reach(cx, nx);
             for z in reach(cz, nz) {
                 for y in reach(cy, ny) {
                     let row = (z * ny + y) * nx;
-                    for &v in &samples[row + reach(cx, nx).start..row + reach(cx, nx).end] {
+                    for &v in &samples[row + xs.start..row + xs.end] {
                         lo = lo.min(v);
                         hi = hi.max(v);
                     }
                 }
             }
-            let face = |i: usize, n: usize| i == 0 || (i + 1) * CELL >= n;
+            let face = |i: usize, n: usize| i == 0 || (i + 1) * edge >= n;
             if face(cx, nx) || face(cy, ny) || face(cz, nz) {
                 lo = 0;
             }
@@ -60,17 +70,17 @@ impl Occupancy {
         })
     }
 
-    /// The cells where η changes: a texel of the gradient volume (`gradient.rs`: ∇η in xyz)
-    /// within a voxel of the cell has a gradient other than zero.
+    /// The cells of [`CELL`] voxels where η changes: a texel of the gradient volume
+    /// (`gradient.rs`) within a voxel of the cell changes η ([`super::gradient::bends`]).
     pub fn refracting(texels: &[[half::f16; 4]], dims: [usize; 3]) -> Occupancy {
         let [nx, ny, nz] = dims;
-        Self::build(dims, |[cx, cy, cz]| {
+        let reach = |i: usize, n: usize| reach(i, n, CELL);
+        Self::build(dims, CELL, |[cx, cy, cz]| {
+            let xs = reach(cx, nx);
             reach(cz, nz).any(|z| {
                 reach(cy, ny).any(|y| {
                     let row = (z * ny + y) * nx;
-                    texels[row + reach(cx, nx).start..row + reach(cx, nx).end]
-                        .iter()
-                        .any(|t| t[..3].iter().any(|g| g.to_f32() != 0.0))
+                    texels[row + xs.start..row + xs.end].iter().any(super::gradient::bends)
                 })
             })
         })
@@ -84,7 +94,7 @@ impl Occupancy {
     /// the volume's box being [0, 1]³), for [`Grown::span`].
     pub fn grown(&self, margin: [f32; 3]) -> Grown {
         // Cells of grid per texture unit along each axis.
-        let per_unit = [0, 1, 2].map(|a| self.voxels[a] as f32 / CELL as f32);
+        let per_unit = [0, 1, 2].map(|a| self.voxels[a] as f32 / self.edge as f32);
         let d = [0, 1, 2].map(|a| (margin[a] * per_unit[a]).max(0.0).ceil() as usize);
         let size = [0, 1, 2].map(|a| self.cells[a] + 2 * d[a]);
         // Separable: grow along x, then y, then z (a box of (2d+1)³ cells about each).
@@ -274,6 +284,7 @@ mod tests {
             flags: vec![false; 8 * 8 * 8],
             cells: [8, 8, 8],
             voxels,
+            edge: CELL,
         };
         // Cell (3, 4, 5): texture [3/8, 4/8) × [4/8, 5/8) × [5/8, 6/8).
         occ.flags[(5 * 8 + 4) * 8 + 3] = true;
@@ -313,6 +324,7 @@ mod tests {
             flags: vec![false; 8 * 8 * 8],
             cells: [8, 8, 8],
             voxels: [32, 32, 32],
+            edge: CELL,
         };
         coarse.flags[(5 * 8 + 4) * 8 + 3] = true;
         // Twice the voxels over the same box: its cell (12, 2, 2) is the coarse cell (6, 1, 1).
@@ -320,6 +332,7 @@ mod tests {
             flags: vec![false; 16 * 16 * 16],
             cells: [16, 16, 16],
             voxels: [64, 64, 64],
+            edge: CELL,
         };
         fine.flags[(2 * 16 + 2) * 16 + 12] = true;
         let margin = [0.5 / 8.0; 3]; // half a coarse cell: one cell each way on both grids
@@ -359,7 +372,7 @@ mod tests {
             albedo: None,
             anisotropy: None,
         };
-        let v = Occupancy::visible(&samples, dims, &tf);
+        let v = Occupancy::visible(&samples, dims, &tf, CELL);
         // Voxel 9 is in cell 2 and within a voxel of none other (cell 2 spans 8..12).
         assert_eq!(v.cells, [4, 4, 4]);
         assert_eq!(v.flags.iter().filter(|f| **f).count(), 1);

@@ -415,17 +415,21 @@ pub(super) fn run(
     let (light_box, light_margin, spans) = if layout.light_lists {
         let (every, straight) = light_tiles::margins(&view, &grid, scene.quality.sample_distance, features.refraction);
         let scale = light_tiles::texture_scale(&view);
-        let occupancy = &cached.textures.occupancy;
-        let mut spans = light_tiles::spans(&view, &grid, light, scale.map(|s| s * straight), occupancy);
+        // The occupied cells grown by what a view sample reads and a straight beam's deposit
+        // reach (`straight`).
+        let grown: Vec<_> = cached
+            .textures
+            .occupancy
+            .iter()
+            .map(|o| o.grown(scale.map(|s| s * straight)))
+            .collect();
+        let mut spans = light_tiles::spans(&view, &grid, light, &grown);
         if features.refraction {
             // Bent beams end where the device finds they can no longer reach the box
             // (`light_alive`); the straight lines' last planes do not bound them.
             spans.iter_mut().for_each(|s| s[2] = 0);
-            // A beam deposits only where a view sample can read it: within the margin of an
-            // occupied cell that covers what a view sample reads and a straight beam's
-            // deposit reach (`straight`); a beam whose deposit reaches further (spread by
-            // refraction) always deposits.
-            let grown: Vec<_> = occupancy.iter().map(|o| o.grown(scale.map(|s| s * straight))).collect();
+            // A beam deposits only where a view sample can read it: in those cells; a beam
+            // whose deposit reaches further (spread by refraction) always deposits.
             if let Some((first, others)) = grown.split_first() {
                 deposit_cells = first.words(others);
                 deposit_cells[3] = (straight - every).to_bits();

@@ -101,7 +101,7 @@ impl SceneTextures {
         let vol_img = volume_image(ctx, "volume", volume)?;
         let samples = volume.normalized_u16(window);
         let mut occupancy = super::bricks::bricks(&samples, volume.dims, tf);
-        let mut cells = vec![Occupancy::visible(&samples, volume.dims, tf)];
+        let mut cells = vec![Occupancy::visible(&samples, volume.dims, tf, super::occupancy::CELL)];
         let bytes: Vec<u8> = bytemuck::cast_slice(&samples).to_vec();
         uploads.push((images.len(), vec![(staging.push(&bytes), vol_img.desc.extent)]));
         images.push(vol_img);
