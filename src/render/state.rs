@@ -99,6 +99,12 @@ fn pyramid_texels(w: u32, h: u32, levels: u32) -> u64 {
         .sum()
 }
 
+/// Whether the beams deposit their light in the ring `light_acc` (refraction, the spread
+/// mode's scattered light).
+fn deposit_ring(features: &Features) -> bool {
+    features.transport == LightTransport::Beams && (features.refraction || features.scatter)
+}
+
 /// Workgroups of the tiles pass for `view_groups` rect tiles and `light_tiles` light tiles to
 /// list: one invocation per rect tile, then one per light tile (a workgroup whose invocations
 /// have nothing to do still costs its launch on a CPU driver).
@@ -294,7 +300,7 @@ impl State {
             (
                 "light_acc",
                 LIGHT_RING * pyramid_texels(view.width, view.height, levels) * layout.channels as u64 * 4,
-                beams && (refraction || features.scatter),
+                deposit_ring(features),
             ),
             ("beam_scatter", 2 * cells * 48, features.scatter),
             ("back_light", LIGHT_RING * cells * rgba, !beams),
@@ -537,8 +543,7 @@ pub(super) fn run(
     // Beams that deposit their light (refraction, the spread mode) fill a ring of slots, one
     // per plane: each is cleared before the plane that deposits into it.
     let light_acc = state.get("light_acc")?;
-    let deposit_slot_bytes = (features.transport == LightTransport::Beams && (features.refraction || features.scatter))
-        .then_some(light_acc.size / LIGHT_RING);
+    let deposit_slot_bytes = deposit_ring(&features).then_some(light_acc.size / LIGHT_RING);
     let texels_per_plane = (layout.grid.count() + view.rect.width() as u64 * view.rect.height() as u64).max(1);
     let diagnoses_light = matches!(
         req.debug_view,
