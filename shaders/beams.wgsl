@@ -795,9 +795,10 @@ fn beams_unscattered_at(k: u32, p: vec3<f32>) -> vec3<f32> {
 }
 
 // Without refraction, the power each beam had on plane k-1 (before its segment to plane k) is
-// kept beside its power on plane k, for `beams_unscattered_through`.
+// kept beside its power on plane k, for `beams_unscattered_through`: for the last P.sweep.x
+// planes, as many as a view pass advances its rays over, plus the one being written.
 fn front_power_region(k: u32) -> u32 {
-    return 2u + k % 2u;
+    return 2u + k % P.sweep.x;
 }
 
 // The transmittance of the light's last segment to p (value: the data value there): from the

@@ -96,13 +96,18 @@ struct Params {
     tiles: vec4<u32>,                // view tiles in x, view workgroups, workgroups per dispatch row (all passes), light channels
     culling: vec4<u32>,              // bricks along x, y, z; 1 when view tiles are listed per plane (else all are dispatched)
     light_box: vec4<f32>,            // beams: texture units per view unit along each axis at most (xyz); w: 1 when light tiles are listed per plane
+    sweep: vec4<u32>,                // planes of the unrefracted beams' front power kept (x), planes per view pass (y)
 }
 
 struct Immediates {
     plane_index: u32,
     seed: u32,
-    pad0: u32,
-    pad1: u32,
+    // View pass: the planes its rays advance (dispatches plane_index - view_steps + 1 ..=
+    // plane_index); tiles pass: those of the next view pass (0: it lists no view tiles).
+    view_steps: u32,
+    // The view pass's number in the sweep: it reads list view_list % 3 of `tile_lists`, the
+    // tiles pass after it writes the next.
+    view_list: u32,
 }
 
 // Params is a read-only storage buffer, not a uniform buffer: lavapipe specialises a shader on

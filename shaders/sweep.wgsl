@@ -3,6 +3,10 @@
 // moves the view rays one plane behind, from k-2 to k-1, so that both ends of their segment
 // have complete light. Light lives in a ring of three planes. They are separate dispatches,
 // not two branches of one: a CPU driver runs every branch a workgroup's invocations take.
+// Where the light stays where the light pass left it (beams without refraction keep each
+// plane's power in a ring of `sweep.x` planes), plane k's `view_main` may instead move the
+// rays over the planes since the last view pass, up to k-1 (`view_steps`), keeping their
+// state in the invocation between planes; the planes in between have no view pass.
 
 @compute @workgroup_size(TILE * TILE, 1, 1)
 fn light_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
@@ -52,11 +56,14 @@ fn tile_pixel(tile: u32, li: u32) -> vec2<u32> {
 @compute @workgroup_size(TILE * TILE, 1, 1)
 fn view_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
     let k = dispatch_plane(wg);
+    // Without refraction a view pass may advance its rays over several planes, whose light
+    // is complete (`sweep.y`): their state stays in the invocation, not in a dispatch each.
+    let steps = I.view_steps + wg.z;
     let group = wg.y * P.tiles.z + wg.x;
     var tile = group;
     if (k >= 2u && P.culling.w == 1u) {
-        // Only the tiles listed for this plane were dispatched (indirect).
-        tile = tile_lists[(k % 3u) * P.tiles.y + group];
+        // Only the tiles listed for this pass were dispatched (indirect).
+        tile = tile_lists[(I.view_list % 3u) * P.tiles.y + group];
     } else if (group >= P.tiles.y) {
         return;
     }
@@ -69,6 +76,8 @@ fn view_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_ind
     }
     if (k == 1u) {
         view_first_light(px);
+    } else if (k >= 2u && view_spans_planes()) {
+        view_steps(px, k - steps, k - 1u, tile);
     } else if (k >= 2u) {
         view_step(px, k - 1u, tile);
     }
@@ -76,9 +85,10 @@ fn view_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_ind
 
 // Per rect tile, one invocation each (a workgroup whose invocations have nothing to do still
 // costs its launch on a CPU driver: at 256², 1024 of them per plane took a tenth of a plain
-// render; the slot the next plane deposits into is cleared by a buffer fill): the tile is
-// listed for plane k+1 if it needs it: a ray alive whose next segment (or the one after,
-// so that a ray is stepped onto the plane before it has something to composite) meets a
+// render; the slot the next plane deposits into is cleared by a buffer fill): after a view
+// pass, the tile is listed for the next one (which advances the rays over the next
+// I.view_steps planes) if it needs it: a ray alive whose next segments (or the one after,
+// so that a ray is stepped onto the plane before it has something to composite) meet a
 // visible brick (with refraction, or one where η changes) along the rays' primary lines. Rays
 // once bent can be anywhere: their tile (VIEW_TILE_BENT) only needs a ray alive. Written while
 // plane k runs, so a tile whose last ray dies on plane k may be listed once more (its
@@ -101,12 +111,13 @@ fn tiles_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_in
         }
         return;
     }
-    if (P.culling.w == 0u) {
+    let next = I.view_steps + wg.z;
+    if (P.culling.w == 0u || next == 0u) {
         return;
     }
     if (t == 0u) {
-        // The list after next starts empty (its last reader was plane k-1).
-        atomicStore(&tile_args[((k + 2u) % 3u) * 3u], 0u);
+        // The list after next starts empty (its last reader was the view pass before).
+        atomicStore(&tile_args[((I.view_list + 2u) % 3u) * 3u], 0u);
     }
     let rays = atomicLoad(&view_tiles[t]);
     if ((rays & ~VIEW_TILE_BENT) == 0u) {
@@ -118,11 +129,12 @@ fn tiles_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_in
         let lo = vec2<f32>(P.rect.xy + vec2<u32>(t % P.tiles.x, t / P.tiles.x) * TILE);
         let last = u32(P.plane.z) - 1u;
         let za = plane_z(min(k - 1u, last));
-        let zb = plane_z(min(k + 1u, last));
+        let zb = plane_z(min(k + next, last));
         if (!slab_visible(lo, lo + vec2<f32>(f32(TILE)), za, zb)) {
             return;
         }
     }
-    let slot = atomicAdd(&tile_args[((k + 1u) % 3u) * 3u], 1u);
-    tile_lists[((k + 1u) % 3u) * P.tiles.y + slot] = t;
+    let list = (I.view_list + 1u) % 3u;
+    let slot = atomicAdd(&tile_args[list * 3u], 1u);
+    tile_lists[list * P.tiles.y + slot] = t;
 }

@@ -78,12 +78,6 @@ fn view_first_light(px: vec2<u32>) {
     store_view_light(i, vec4<f32>(light, 0.0));
 }
 
-// The ray of pixel i (in rect tile `tile`) ends.
-fn view_end(i: u32, tile: u32, aux: vec4<f32>) {
-    view_aux[i] = vec4<f32>(aux.xy, 0.0, aux.w);
-    atomicSub(&view_tiles[tile], 1u);
-}
-
 // h(x) = (1 − e^−x) / x, h(0) = 1: the mean of e^−u over u in [0, x].
 fn mean_exp(x: vec3<f32>) -> vec3<f32> {
     let series = 1.0 - x * (0.5 - x / 6.0);
@@ -205,23 +199,99 @@ fn left_for_good(p: vec3<f32>, v: vec3<f32>) -> bool {
     return any(below | above);
 }
 
-// One segment from plane k-1 to plane k.
+// A view ray's state between two planes, as the view buffers keep it.
+struct ViewRay {
+    aux: vec4<f32>,     // v.z, data value, the plane it is on plus one (0 once ended), η (view_aux)
+    ray: vec4<f32>,     // with refraction: x, y on the plane, v.x, v.y (view_ray)
+    color: vec4<f32>,   // composited colour and opacity
+    medium: vec3<f32>,  // medium transmittance (MEDIUM)
+    light: vec3<f32>,   // light at its position, the front of its next segment
+}
+
+fn load_view(i: u32) -> ViewRay {
+    var r: ViewRay;
+    r.aux = view_aux[i];
+    if (REFRACTION) {
+        r.ray = view_ray[i];
+    }
+    r.color = load_view_color(i);
+    r.medium = vec3<f32>(1.0);
+    if (MEDIUM) {
+        r.medium = load_view_medium(i).rgb;
+    }
+    r.light = load_view_light(i).rgb;
+    return r;
+}
+
+fn store_view(i: u32, r: ViewRay) {
+    view_aux[i] = r.aux;
+    if (REFRACTION) {
+        view_ray[i] = r.ray;
+    }
+    store_view_color(i, r.color);
+    if (MEDIUM) {
+        store_view_medium(i, vec4<f32>(r.medium, 1.0));
+    }
+    store_view_light(i, vec4<f32>(r.light, 0.0));
+}
+
+
+// One segment from plane k-1 to plane k of pixel px's ray (in rect tile `tile`).
 fn view_step(px: vec2<u32>, k: u32, tile: u32) {
     let i = pixel_index(px);
-    var aux = view_aux[i];
-    if (aux.z <= 0.0) {
+    if (view_aux[i].z <= 0.0) {
         return;
     }
+    var r = load_view(i);
+    _ = view_segment(px, k, tile, &r);
+    store_view(i, r);
+}
+
+// Whether a view pass may advance its rays over several planes (`sweep.y`; `view_planes` in
+// state.rs): where the light they read is the beams' power kept per plane (beams without
+// refraction, no scattered light in the deposit ring, the image or the medium view). A
+// separate function from `view_step`: a CPU driver runs a loop's control for every plane even
+// when it is one.
+fn view_spans_planes() -> bool {
+    return BEAMS && !REFRACTION && !SCATTER && (DEBUG_VIEW == 0u || DEBUG_VIEW == 4u);
+}
+
+// The segments from plane k0-1 to plane k1 of pixel px's ray, its state kept in the
+// invocation between them.
+fn view_steps(px: vec2<u32>, k0: u32, k1: u32, tile: u32) {
+    let i = pixel_index(px);
+    if (view_aux[i].z <= 0.0) {
+        return;
+    }
+    var r = load_view(i);
+    for (var k = k0; k <= k1; k++) {
+        if (!view_segment(px, k, tile, &r)) {
+            break;
+        }
+    }
+    store_view(i, r);
+}
+
+// The ray ends (it is counted out of its tile).
+fn end_ray(r: ptr<function, ViewRay>, tile: u32) {
+    (*r).aux.z = 0.0;
+    atomicSub(&view_tiles[tile], 1u);
+}
+
+// One segment from plane k-1 to plane k of the ray r of pixel px; false once it has ended.
+fn view_segment(px: vec2<u32>, k: u32, tile: u32, r: ptr<function, ViewRay>) -> bool {
+    var aux = (*r).aux;
     // A ray skipped on the planes before (its tile was in empty space) has no fresh front
     // value or light: its last segment was empty, so the end's value and light stand in for
     // them (the segment contributes nothing either way).
     let skipped = u32(aux.z) != k;
     let ds = P.plane.y;
     let z = plane_z(k);
-    var x0 = view_position(px, i, k - 1u);
+    var x0 = unproject(vec2<f32>(px), plane_z(k - 1u));
     var v = primary_dir(vec2<f32>(px));
     if (REFRACTION) {
-        v = vec3<f32>(view_ray[i].zw, aux.x);
+        x0 = vec3<f32>((*r).ray.xy, plane_z(k - 1u));
+        v = vec3<f32>((*r).ray.zw, aux.x);
     }
     let dir = safe_normalize(v);
     if (REFRACTION && skipped) {
@@ -232,8 +302,8 @@ fn view_step(px: vec2<u32>, k: u32, tile: u32) {
     if (dir.z < P.limits.y && guarded(SG_VIEW_MIN_Z)) {
         // The ray turned (nearly) parallel to the planes or back toward the camera: it leaves
         // the sweep here and keeps its direction for the environment lookup.
-        view_end(i, tile, aux);
-        return;
+        end_ray(r, tile);
+        return false;
     }
     // Eq. 8 position update, ending on the next plane (Algorithm 1, line 32).
     let x1 = x0 + dir * ((z - x0.z) / dir.z);
@@ -253,17 +323,14 @@ fn view_step(px: vec2<u32>, k: u32, tile: u32) {
     } else {
         light1 = light_through(k, x1, value1);
     }
-    let l0 = select(load_view_light(i).rgb, light1, skipped);
+    let l0 = select((*r).light, light1, skipped);
     var i_d = s.rgb * segment_light(l0, light1, s.a) * P.light_color.rgb;
     if (LBM) {
         // Multiply scattered light from the illumination grid (lbm_view.wgsl), isotropic.
         i_d += s.rgb * lbm_in_scattering(0.5 * (x0 + x1), split.y) * P.light_color.rgb;
     }
-    var color = load_view_color(i);
-    var medium = vec3<f32>(1.0);
-    if (MEDIUM) {
-        medium = load_view_medium(i).rgb;
-    }
+    var color = (*r).color;
+    var medium = (*r).medium;
     var ix = Index(P.texel.w, vec3<f32>(0.0));
     if (REFRACTION) {
         ix = index_at(x1);
@@ -283,25 +350,26 @@ fn view_step(px: vec2<u32>, k: u32, tile: u32) {
     }
     if (MEDIUM) {
         medium *= split_medium(value0, split, value1, ratio);
-        store_view_medium(i, vec4<f32>(medium, 1.0));
     }
     if (REFRACTION) {
         // Eq. 8 direction update: v += Δs ∇η along the segment, |v| = η (Snell).
         v = snell_renormalise(v + ratio * ds * ix.grad, ix);
-        view_ray[i] = vec4<f32>(x1.xy, v.xy);
+        (*r).ray = vec4<f32>(x1.xy, v.xy);
         aux.x = v.z;
         aux.w = ix.eta;
     }
     aux.y = value1;
     aux.z = f32(k + 1u);
-    store_view_color(i, color);
-    store_view_light(i, vec4<f32>(light1, 0.0));
+    (*r).aux = aux;
+    (*r).color = color;
+    (*r).medium = medium;
+    (*r).light = light1;
     // Early termination once nothing behind can show through, or once a refracted ray has
     // left the volume for good (it keeps its direction for the environment).
     let through = (1.0 - color.a) * max(medium.r, max(medium.g, medium.b));
     if (through < 1.0 - P.shading.z || (REFRACTION && left_for_good(x1, v))) {
-        view_end(i, tile, aux);
-    } else {
-        view_aux[i] = aux;
+        end_ray(r, tile);
+        return false;
     }
+    return true;
 }

@@ -3,7 +3,7 @@
 mod common;
 
 use caustica::render::{PreparedScene, RenderRequest};
-use caustica::scene::{builtin, BUILTIN_SCENES};
+use caustica::scene::{builtin, Precision, BUILTIN_SCENES};
 use common::*;
 
 #[test]
@@ -127,4 +127,48 @@ fn scattering_curves_at_zero_render_todays_image_with_todays_work() {
         a.image.pixels.iter().zip(&b.image.pixels).all(|(x, y)| x == y),
         "zero scattering changed the image"
     );
+}
+
+#[test]
+fn view_passes_over_several_planes_render_what_one_plane_per_pass_does() {
+    // Without refraction a view pass advances its rays over several planes, their state kept
+    // in the invocation in between. With f32 state nothing is rounded between the planes, so
+    // the image is the one a pass per plane gives, to the bit; with f16 state it differs by
+    // the rounding the stored state saw on every plane: a relative 2^-11 per plane of the
+    // colour, whose sum over the planes bounds the difference.
+    let mut gpu = Gpu::new();
+    for (name, view_planes) in [("supernova", 0), ("glass-wine", 3), ("thin-structures", 0)] {
+        let mut scene = builtin(name).unwrap().scene;
+        scene.set_builtin_resolution(32);
+        scene.quality.refraction = caustica::scene::Toggle::Off;
+        for precision in [Precision::F32, Precision::F16] {
+            scene.quality.precision = precision;
+            let p = PreparedScene::load(&scene).unwrap();
+            let mut req = RenderRequest::new(40, 40);
+            req.view_planes = 1;
+            let one = gpu.render(&p, &req);
+            req.view_planes = view_planes;
+            let several = gpu.render(&p, &req);
+            let planes = one.stats.planes;
+            // One pass per plane (the first reads plane 0's light); several: fewer than half.
+            assert_eq!(one.stats.view_passes, planes, "{name}");
+            assert!(
+                several.stats.view_passes * 2 < planes,
+                "{name}: {} passes for {planes} planes",
+                several.stats.view_passes
+            );
+            let bound = planes as f32 * 2f32.powi(-11);
+            let worst = one
+                .image
+                .pixels
+                .iter()
+                .zip(&several.image.pixels)
+                .flat_map(|(a, b)| (0..4).map(move |c| (a[c] - b[c]).abs() / a[c].abs().max(1e-3)))
+                .fold(0.0f32, f32::max);
+            match precision {
+                Precision::F32 => assert_eq!(worst, 0.0, "{name}: f32 state differs"),
+                Precision::F16 => assert!(worst <= bound, "{name}: f16 state differs by {worst} (bound {bound})"),
+            }
+        }
+    }
 }

@@ -91,6 +91,11 @@ pub struct RenderRequest {
     /// standard sweep; [`accumulate`] averages renders over a sequence of them, so that
     /// patterns that follow where the planes and beams fall average out.
     pub jitter: [f32; 3],
+    /// Planes a view pass advances its rays over at most where the sweep allows several
+    /// (beams without refraction: their light stays where the light pass left it); 0 for the
+    /// default. Each pass keeps its rays' state in registers between planes, so 1 and the
+    /// default give the same image up to the rounding of the stored state.
+    pub view_planes: u32,
 }
 
 impl RenderRequest {
@@ -104,6 +109,7 @@ impl RenderRequest {
             safeguards_off: 0,
             cancel: None,
             jitter: [0.0; 3],
+            view_planes: 0,
         }
     }
 }
@@ -130,6 +136,9 @@ pub struct RenderStats {
     pub peak_memory: MemoryUse,
     /// Cells of the light grid (beams or backward lookups), width × height.
     pub light_grid: [u32; 2],
+    /// View passes of the sweep (one per plane, or fewer where each advances the rays over
+    /// several: [`RenderRequest::view_planes`]).
+    pub view_passes: u32,
     /// Pixels whose rays can meet the volume, width × height.
     pub rect: [u32; 2],
     /// Precision the render actually used (lower than the scene's after an out-of-memory retry).

@@ -40,6 +40,9 @@ pub struct Params {
     /// `budget.z` into texture coordinates); w: 1 when light tiles are listed per plane (else
     /// every tile of the light window is dispatched).
     pub light_box: [f32; 4],
+    /// Planes of the unrefracted beams' power before their segment kept at once (the view
+    /// passes read it; `front_power_region` in beams.wgsl), planes per view pass.
+    pub sweep: [u32; 4],
 }
 
 /// Mirrors `struct Immediates` (push constants).
@@ -48,7 +51,11 @@ pub struct Params {
 pub struct Immediates {
     pub plane_index: u32,
     pub seed: u32,
-    pub pad: [u32; 2],
+    /// View pass: the planes it advances its rays over; tiles pass: those of the next view
+    /// pass (0: no view tiles to list).
+    pub view_steps: u32,
+    /// The view pass's number in the sweep (the ring of view tile lists).
+    pub view_list: u32,
 }
 
 #[cfg(test)]
@@ -59,7 +66,7 @@ mod tests {
     #[test]
     fn params_layout_matches_wgsl() {
         let src = format!(
-            "{}\n@compute @workgroup_size(1) fn main() {{ _ = P.light_box; _ = I.seed; }}",
+            "{}\n@compute @workgroup_size(1) fn main() {{ _ = P.sweep; _ = I.seed; }}",
             crate::render::shaders::COMMON
         );
         let module = naga::front::wgsl::parse_str(&src).expect("common.wgsl parses");
@@ -79,7 +86,7 @@ mod tests {
             panic!()
         };
         let expected = [
-            0, 64, 128, 192, 208, 224, 240, 256, 272, 288, 304, 320, 336, 352, 368, 384, 400, 416, 432, 448,
+            0, 64, 128, 192, 208, 224, 240, 256, 272, 288, 304, 320, 336, 352, 368, 384, 400, 416, 432, 448, 464,
         ];
         let offsets: Vec<u32> = members.iter().map(|m| m.offset).collect();
         assert_eq!(offsets, expected);

@@ -3,7 +3,9 @@
 //! One dispatch per plane k moves the light from plane k-1 to plane k (beams or backward
 //! lookups, on the light grid) and the view rays one plane behind, from k-2 to k-1, so both
 //! ends of a view segment have their light. Light lives in a ring of three planes; view rays
-//! are updated in place.
+//! are updated in place. Where the light a view ray reads is the beams' power kept per plane
+//! (no refraction), one view pass advances the rays over several planes
+//! (`Layout::view_planes`), and the power of that many planes is kept.
 
 use std::io::IsTerminal;
 use std::sync::Arc;
@@ -32,6 +34,8 @@ const TEXELS_PER_SUBMIT: u64 = 1 << 24;
 /// Pixel-planes per submission of a cancellable render (between 1 and 8 planes): a view
 /// change stops it within about one plane of a 1024×768 image.
 const PIXEL_PLANES_PER_SUBMIT_CANCELLABLE: u32 = 1 << 20;
+/// Planes a view pass advances its rays over where it can take several (`Layout::view_planes`).
+const VIEW_PLANES_PER_PASS: u32 = 8;
 /// Largest workgroup count along one dispatch axis that every Vulkan device accepts.
 const MAX_GROUPS_PER_ROW: u32 = 65535;
 /// Planes of light kept at once (the ring of `sweep.wgsl`).
@@ -68,6 +72,10 @@ struct Layout {
     /// The light tiles each plane steps are listed on the device and dispatched indirectly
     /// (`light_tiles_listed` in beams.wgsl); else every tile of the plane's light window is.
     light_lists: bool,
+    /// Planes each view pass advances its rays over (`view_main` in sweep.wgsl): several
+    /// where the light they read stays where it was deposited (beams without refraction),
+    /// one otherwise.
+    view_planes: u32,
 }
 
 impl Layout {
@@ -82,6 +90,7 @@ impl Layout {
             channels,
             lists: view_groups <= MAX_GROUPS_PER_ROW,
             light_lists: false,
+            view_planes: 1,
         }
     }
 }
@@ -103,6 +112,12 @@ fn pyramid_texels(w: u32, h: u32, levels: u32) -> u64 {
 /// mode's scattered light).
 fn deposit_ring(features: &Features) -> bool {
     features.transport == LightTransport::Beams && (features.refraction || features.scatter)
+}
+
+/// Planes of the unrefracted beams' power before their segment kept at once: those a view
+/// pass reads and the one the light pass beside it writes.
+fn front_planes(view_planes: u32) -> u32 {
+    view_planes + 1
 }
 
 /// Workgroups of the tiles pass for `view_groups` rect tiles and `light_tiles` light tiles to
@@ -247,6 +262,7 @@ fn make_params(
         ],
         culling: [brick_dims[0], brick_dims[1], brick_dims[2], u32::from(layout.lists)],
         light_box,
+        sweep: [front_planes(layout.view_planes), layout.view_planes, 0, 0],
     }
 }
 
@@ -295,8 +311,17 @@ impl State {
             ("view_medium", pixels * rgba, features.medium),
             ("beam_pos", 2 * cells * 16, beams && refraction),
             ("beam_aux", 2 * cells * 16, beams),
-            // Without refraction also each beam's power on the plane before (the view reads it).
-            ("beam_power", if refraction { 2 } else { 4 } * cells * rgba, beams),
+            // Without refraction also each beam's power on the planes before (the view reads it).
+            (
+                "beam_power",
+                if refraction {
+                    2
+                } else {
+                    2 + front_planes(layout.view_planes) as u64
+                } * cells
+                    * rgba,
+                beams,
+            ),
             (
                 "light_acc",
                 LIGHT_RING * pyramid_texels(view.width, view.height, levels) * layout.channels as u64 * 4,
@@ -390,6 +415,20 @@ pub(super) fn run(
         && matches!(req.debug_view, DebugView::Image | DebugView::Medium)
         && super::bricks::clear_outside(&prepared.tf)
         && layout.beam_groups <= MAX_GROUPS_PER_ROW;
+    // View rays advance over several planes per pass where the light they read is the beams'
+    // power kept per plane (no refraction, no scattered light in the deposit ring; as
+    // `view_spans_planes` in view.wgsl) and their tiles are listed.
+    if features.transport == LightTransport::Beams
+        && !features.refraction
+        && !features.scatter
+        && layout.lists
+        && matches!(req.debug_view, DebugView::Image | DebugView::Medium)
+    {
+        layout.view_planes = match req.view_planes {
+            0 => VIEW_PLANES_PER_PASS,
+            n => n,
+        };
+    }
     let window = prepared.window();
     // Scene textures are kept between renders while what they hold is unchanged (an
     // interactive view changes mostly the camera and light).
@@ -550,16 +589,16 @@ pub(super) fn run(
         DebugView::Light | DebugView::LightDirection | DebugView::Intensity
     );
     let planes_per_submit = (TEXELS_PER_SUBMIT / texels_per_plane).clamp(1, PLANES_PER_SUBMIT as u64) as u32;
-    let push = |plane: u32| Immediates {
+    let push = |plane: u32, view_steps: u32, view_list: u32| Immediates {
         plane_index: plane,
         seed: 0x9e37_79b9,
-        pad: [0; 2],
+        view_steps,
+        view_list,
     };
-
     rec.dispatch(
         &pipelines[0],
         &sets[0],
-        bytemuck::bytes_of(&push(0)),
+        bytemuck::bytes_of(&push(0, 0, 0)),
         groups(layout.beam_groups + layout.view_groups),
     )?;
     rec.compute_to_compute();
@@ -572,6 +611,13 @@ pub(super) fn run(
     };
     let bar = progress_bar(req.progress, dispatches as u64);
     let mut gpu_ms = lbm_light.as_ref().map_or(0.0, |l| l.stats.gpu_ms);
+    // Dispatch k's view pass, if it has one, advances the rays to plane k-1 from the plane the
+    // pass before left them on: the first two one plane each, then `view_planes` at a time,
+    // the last whatever is left.
+    let view_pass = |k: u32| k <= 2 || (k - 2) % layout.view_planes == 0 || k == dispatches;
+    let next_view_pass = |k: u32| (k + 1..=dispatches).find(|&j| view_pass(j));
+    let mut view_passes = 0u32;
+    let mut last_view = 0u32;
     let mut plane = 1u32;
     let mut rec = Some(rec);
     let chunk = if req.cancel.is_some() {
@@ -595,8 +641,8 @@ pub(super) fn run(
         r.timestamp(&ts, 0);
         let end = (plane + chunk).min(dispatches + 1);
         while plane < end {
-            let immediates = push(plane);
-            let p = bytemuck::bytes_of(&immediates);
+            let light_push = push(plane, 0, 0);
+            let p = bytemuck::bytes_of(&light_push);
             let window = windows[plane as usize][3];
             if plane < view.planes && layout.light_lists {
                 // The listed tiles, then those at the edge of the stepped ones (two lists
@@ -608,21 +654,35 @@ pub(super) fn run(
             } else if plane < view.planes && window > 0 {
                 r.dispatch(&pipelines[1], &sets[1], p, groups(window))?;
             }
-            if !diagnoses_light {
+            let view_now = !diagnoses_light && view_pass(plane);
+            if view_now {
+                let v = push(plane, plane - last_view, view_passes);
+                let p = bytemuck::bytes_of(&v);
                 if plane >= 2 && layout.lists {
-                    let offset = (plane as u64 % LIGHT_RING) * 12;
+                    let offset = (view_passes as u64 % LIGHT_RING) * 12;
                     r.dispatch_indirect(&pipelines[2], &sets[2], p, tile_args, offset)?;
                 } else {
                     r.dispatch(&pipelines[2], &sets[2], p, groups(layout.view_groups))?;
                 }
             }
-            // Clears the ring for the next plane's deposits and lists its view tiles (and its
-            // light tiles, from this plane's beams).
+            // Clears the ring for the next plane's deposits and lists the next view pass's
+            // tiles (and the next plane's light tiles, from this plane's beams).
             if layout.light_lists || features.refraction {
                 // The light tiles read the plane's light; the view tiles its rays' bends.
                 r.compute_to_compute();
             }
-            r.dispatch(&pipelines[3], &sets[3], p, groups(tile_groups))?;
+            let next_steps = match (view_now, next_view_pass(plane)) {
+                (true, Some(next)) => next - plane,
+                _ => 0,
+            };
+            if next_steps > 0 || layout.light_lists {
+                let t = push(plane, next_steps, view_passes);
+                r.dispatch(&pipelines[3], &sets[3], bytemuck::bytes_of(&t), groups(tile_groups))?;
+            }
+            if view_now {
+                view_passes += 1;
+                last_view = plane;
+            }
             if let Some(bytes) = deposit_slot_bytes {
                 // Plane k+1 deposits into the slot plane k-2 used, whose last reader was the
                 // view dispatch of plane k-2 (recorded before this plane's).
@@ -636,7 +696,7 @@ pub(super) fn run(
             r.dispatch(
                 &pipelines[4],
                 &sets[4],
-                bytemuck::bytes_of(&push(planes_run - 1)),
+                bytemuck::bytes_of(&push(planes_run - 1, 0, 0)),
                 finish_groups,
             )?;
             r.compute_to_transfer();
@@ -670,6 +730,7 @@ pub(super) fn run(
                         / planes_run.max(1) as f64,
                     state_bytes: state.bytes,
                     light_grid: [layout.grid.width, layout.grid.height],
+                    view_passes,
                     rect: [view.rect.width(), view.rect.height()],
                     precision,
                     reductions: Vec::new(),
