@@ -36,6 +36,9 @@ const TEXELS_PER_SUBMIT: u64 = 1 << 24;
 const PIXEL_PLANES_PER_SUBMIT_CANCELLABLE: u32 = 1 << 20;
 /// Planes a view pass advances its rays over where it can take several (`Layout::view_planes`).
 const VIEW_PLANES_PER_PASS: u32 = 8;
+/// Bytes the beams' power of the planes a view pass spans may take: eight planes up to about
+/// 700² pixels, three at 1024² (where the fixed cost per plane matters least).
+const VIEW_RING_BYTES: u64 = 48 << 20;
 /// Largest workgroup count along one dispatch axis that every Vulkan device accepts.
 const MAX_GROUPS_PER_ROW: u32 = 65535;
 /// Planes of light kept at once (the ring of `sweep.wgsl`).
@@ -295,10 +298,7 @@ impl State {
     ) -> Result<State, GpuError> {
         let pixels = view.width as u64 * view.height as u64;
         let cells = layout.grid.count();
-        let rgba = match precision {
-            Precision::F16 => 8,
-            Precision::F32 => 16,
-        };
+        let rgba = precision.rgba_bytes();
         let beams = features.transport == LightTransport::Beams;
         let refraction = features.refraction;
         let back_dir = !beams && (refraction || features.intensity_correction);
@@ -417,15 +417,18 @@ pub(super) fn run(
         && layout.beam_groups <= MAX_GROUPS_PER_ROW;
     // View rays advance over several planes per pass where the light they read is the beams'
     // power kept per plane (no refraction, no scattered light in the deposit ring; as
-    // `view_spans_planes` in view.wgsl) and their tiles are listed.
+    // `view_spans_planes` in view.wgsl) and their tiles are listed: as many as the power of
+    // `VIEW_RING_BYTES` holds.
     if features.transport == LightTransport::Beams
         && !features.refraction
         && !features.scatter
         && layout.lists
         && matches!(req.debug_view, DebugView::Image | DebugView::Medium)
     {
+        let plane_bytes = grid.count() * precision.rgba_bytes();
+        let fit = (VIEW_RING_BYTES / plane_bytes.max(1)).saturating_sub(1) as u32;
         layout.view_planes = match req.view_planes {
-            0 => VIEW_PLANES_PER_PASS,
+            0 => fit.clamp(1, VIEW_PLANES_PER_PASS),
             n => n,
         };
     }

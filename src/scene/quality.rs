@@ -25,6 +25,14 @@ pub enum Precision {
 }
 
 impl Precision {
+    /// Bytes of one rgba texel of the state buffers.
+    pub fn rgba_bytes(self) -> u64 {
+        match self {
+            Precision::F16 => 8,
+            Precision::F32 => 16,
+        }
+    }
+
     pub fn parse(s: &str) -> Option<Precision> {
         match s {
             "f16" => Some(Precision::F16),
