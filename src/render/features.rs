@@ -170,6 +170,7 @@ impl Features {
             (self.eta_volume, "eta-volume"),
             (self.orthographic, "orthographic"),
             (self.gradient == Gradient::Forward, "forward-gradient"),
+            (self.gradient == Gradient::FourthOrder, "fourth-order-gradient"),
             (self.transport == LightTransport::Backward, "backward"),
             (self.lbm, "lbm"),
             (self.scatter, "spread"),
