@@ -62,6 +62,11 @@ pub fn transport_variants() -> Vec<Variant> {
             s.quality.light_transport = LightTransport::Beams;
             s.quality.beams_per_texel = 2.0;
         }),
+        Variant::new("beams, 2² per texel, fourth-order ∇η", |s| {
+            s.quality.light_transport = LightTransport::Beams;
+            s.quality.beams_per_texel = 2.0;
+            s.quality.gradient = crate::scene::Gradient::FourthOrder;
+        }),
         Variant::new("backward", |s| s.quality.light_transport = LightTransport::Backward),
     ]
 }
