@@ -57,7 +57,7 @@ fn tile_pixel(tile: u32, li: u32) -> vec2<u32> {
 fn view_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
     let k = dispatch_plane(wg);
     // Without refraction a view pass may advance its rays over several planes, whose light
-    // is complete (`sweep.y`): their state stays in the invocation, not in a dispatch each.
+    // is complete (`view_steps`): their state stays in the invocation, not in a dispatch each.
     let steps = I.view_steps + wg.z;
     let group = wg.y * P.tiles.z + wg.x;
     var tile = group;

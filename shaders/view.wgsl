@@ -235,7 +235,6 @@ fn store_view(i: u32, r: ViewRay) {
     store_view_light(i, vec4<f32>(r.light, 0.0));
 }
 
-
 // One segment from plane k-1 to plane k of pixel px's ray (in rect tile `tile`).
 fn view_step(px: vec2<u32>, k: u32, tile: u32) {
     let i = pixel_index(px);
@@ -247,7 +246,7 @@ fn view_step(px: vec2<u32>, k: u32, tile: u32) {
     store_view(i, r);
 }
 
-// Whether a view pass may advance its rays over several planes (`sweep.y`; `view_planes` in
+// Whether a view pass may advance its rays over several planes (`view_steps`; `view_planes` in
 // state.rs): where the light they read is the beams' power kept per plane (beams without
 // refraction, no scattered light in the deposit ring, the image or the medium view). A
 // separate function from `view_step`: a CPU driver runs a loop's control for every plane even

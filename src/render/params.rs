@@ -41,7 +41,7 @@ pub struct Params {
     /// every tile of the light window is dispatched).
     pub light_box: [f32; 4],
     /// Planes of the unrefracted beams' power before their segment kept at once (the view
-    /// passes read it; `front_power_region` in beams.wgsl), planes per view pass.
+    /// passes read it; `front_power_region` in beams.wgsl); the rest unused.
     pub sweep: [u32; 4],
 }
 

@@ -265,7 +265,7 @@ fn make_params(
         ],
         culling: [brick_dims[0], brick_dims[1], brick_dims[2], u32::from(layout.lists)],
         light_box,
-        sweep: [front_planes(layout.view_planes), layout.view_planes, 0, 0],
+        sweep: [front_planes(layout.view_planes), 0, 0, 0],
     }
 }
 
