@@ -183,9 +183,10 @@ fn ball_lens_light_converges_to_the_continuous_ball_at_fine_steps_and_beams() {
         let all = |img: &ScalarImage| measure::total(img, Region::all(img));
         let total = all(&gpu_light) / all(&voxel_light);
         let sectors = measure::sector_variation(&gpu_light, centre(), 0.25 * R, 0.75 * R, 16);
+        let voxel_sectors = measure::sector_variation(&voxel_light, centre(), 0.25 * R, 0.75 * R, 16);
         let at = (z - lens.centre_z) / R;
         report.push(format!(
-            "{at:.2} R: L1 {l1:.3}, power r < R {inside:.3}, total (vs voxels) {total:.4}, total (vs ball) {:.4}, sectors {sectors:.3} (exact {:.3})",
+            "{at:.2} R: L1 {l1:.3}, power r < R {inside:.3}, total (vs voxels) {total:.4}, total (vs ball) {:.4}, sectors {sectors:.3} (exact {:.3}, voxels' exact {voxel_sectors:.3})",
             all(&gpu_light) / all(&truth),
             measure::sector_variation(&truth, centre(), 0.25 * R, 0.75 * R, 16)
         ));
@@ -203,9 +204,16 @@ fn ball_lens_light_converges_to_the_continuous_ball_at_fine_steps_and_beams() {
         // 0.004, 0.000 and 0.010 at 1.5, 2 and 3 R; the exact light's 0.001, 0.010 and 0.000;
         // with central differences 0.060 at 1.5 R, whose error has the lattice's four-fold
         // pattern). At 1.1 and 1.25 R, near the focus, the voxelised ball's own exact trace
-        // reads 0.14–0.32 (the GPU 0.15 and 0.09; 0.07 and 0.03 with central differences).
+        // reads 0.14–0.32 (the GPU 0.15 and 0.09; 0.07 and 0.03 with central differences):
+        // the lattice's star is in the voxels there, not added by the transport, so the bound
+        // is the larger of 5% and what the exact trace of the same voxels shows.
         if DEPTHS[i] >= 1.5 {
             assert!(sectors <= 0.05, "angular structure {sectors} at {at:.2} R");
+        } else {
+            assert!(
+                sectors <= voxel_sectors.max(0.05),
+                "angular structure {sectors} at {at:.2} R, more than the voxels' exact {voxel_sectors}"
+            );
         }
     }
     eprintln!(
