@@ -1054,11 +1054,7 @@ fn spread_entry(e: vec4<f32>, m: vec4<f32>, w: f32, lag: f32, p1: f32, bh: f32, 
 // |cos θ| between the light and the normal of the medium's face at p (the data value's
 // gradient); 1 where the value has no gradient there (the medium fades in).
 fn entry_cosine(p: vec3<f32>) -> f32 {
-    let h = P.plane.y;
-    let grad = vec3<f32>(
-        sample_value(p + vec3<f32>(h, 0.0, 0.0)) - sample_value(p - vec3<f32>(h, 0.0, 0.0)),
-        sample_value(p + vec3<f32>(0.0, h, 0.0)) - sample_value(p - vec3<f32>(0.0, h, 0.0)),
-        sample_value(p + vec3<f32>(0.0, 0.0, h)) - sample_value(p - vec3<f32>(0.0, 0.0, h)));
+    let grad = value_gradient(p, P.plane.y);
     let len = length(grad);
     if (len < 1e-6) {
         return 1.0;

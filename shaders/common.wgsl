@@ -399,6 +399,16 @@ fn sample_value(p: vec3<f32>) -> f32 {
     return textureSampleLevel(volume_tex, volume_sampler, volume_coord(p), 0.0).r;
 }
 
+// The data value's gradient at p from central differences h either side along each view
+// axis (per 2h view units: only its direction is used).
+fn value_gradient(p: vec3<f32>, h: f32) -> vec3<f32> {
+    return vec3<f32>(
+        sample_value(p + vec3<f32>(h, 0.0, 0.0)) - sample_value(p - vec3<f32>(h, 0.0, 0.0)),
+        sample_value(p + vec3<f32>(0.0, h, 0.0)) - sample_value(p - vec3<f32>(0.0, h, 0.0)),
+        sample_value(p + vec3<f32>(0.0, 0.0, h)) - sample_value(p - vec3<f32>(0.0, 0.0, h)),
+    );
+}
+
 struct Index {
     eta: f32,          // refractive index
     grad: vec3<f32>,   // ∇η in view space (per view unit)
