@@ -24,8 +24,9 @@ pub const NEVER: u32 = u32::MAX;
 /// With refraction the light is the beams' deposits, which reach half a footprint and a
 /// texel of its level beyond a beam, and the view's bilinear read one texel more
 /// (`deposit_reach` in beams.wgsl, per beam); a straight beam's footprint is its cell, at most
-/// `stride` pixels on any plane, and the largest pixel is the far plane's.
-pub fn margins(view: &ViewSetup, grid: &BeamGrid, sample_distance: f32, refraction: bool) -> (f32, f32) {
+/// `stride` pixels on any plane, and the largest pixel is the far plane's. Without refraction
+/// a view sample reads the beams further back along its light line by `back` (view units).
+pub fn margins(view: &ViewSetup, grid: &BeamGrid, sample_distance: f32, refraction: bool, back: f32) -> (f32, f32) {
     let voxel = view.step / sample_distance.max(1e-6);
     let f = view.projection[0].abs().min(view.projection[1].abs()).max(1e-12);
     let z_last = view.plane_z(view.planes - 1);
@@ -34,7 +35,7 @@ pub fn margins(view: &ViewSetup, grid: &BeamGrid, sample_distance: f32, refracti
     } else {
         (1.0 / f, 1.0 / f)
     };
-    let base = 3.0 * view.step + 2.0 * voxel + 2.0 * grid.stride * pixel_first;
+    let base = 3.0 * view.step + 2.0 * voxel + 2.0 * grid.stride * pixel_first + back;
     if !refraction {
         return (base, base);
     }

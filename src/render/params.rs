@@ -40,8 +40,11 @@ pub struct Params {
     /// `budget.z` into texture coordinates); w: 1 when light tiles are listed per plane (else
     /// every tile of the light window is dispatched).
     pub light_box: [f32; 4],
-    /// Planes of the unrefracted beams' power before their segment kept at once (the view
-    /// passes read it; `front_power_region` in beams.wgsl); the rest unused.
+    /// x: planes of the beams' power before their segment kept at once (the view passes read
+    /// the unrefracted beams'; refracted beams deposit their own from y planes back;
+    /// `front_power_region` in beams.wgsl); y: planes back along its light line from which a
+    /// view sample reads it, those in a voxel (`beams_unscattered_through`,
+    /// `beams_light_through`); the rest unused.
     pub sweep: [u32; 4],
 }
 

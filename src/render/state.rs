@@ -79,6 +79,10 @@ struct Layout {
     /// where the light they read stays where it was deposited (beams without refraction),
     /// one otherwise.
     view_planes: u32,
+    /// Planes back along its light line from which a view sample reads the beams' power
+    /// (`beams_unscattered_through` and `beams_light_through` in beams.wgsl): those in a
+    /// voxel.
+    back_planes: u32,
 }
 
 impl Layout {
@@ -94,6 +98,7 @@ impl Layout {
             lists: view_groups <= MAX_GROUPS_PER_ROW,
             light_lists: false,
             view_planes: 1,
+            back_planes: 1,
         }
     }
 }
@@ -117,10 +122,17 @@ fn deposit_ring(features: &Features) -> bool {
     features.transport == LightTransport::Beams && (features.refraction || features.scatter)
 }
 
-/// Planes of the unrefracted beams' power before their segment kept at once: those a view
-/// pass reads and the one the light pass beside it writes.
-fn front_planes(view_planes: u32) -> u32 {
-    view_planes + 1
+/// Planes of the beams' power before their segment kept at once: those a view pass reads
+/// (its own planes and `back_planes` - 1 before them; refracted beams read their own to
+/// deposit it) and the one the light pass beside it writes.
+fn front_planes(view_planes: u32, back_planes: u32) -> u32 {
+    view_planes + back_planes
+}
+
+/// The planes in one voxel at `sample_distance` (voxels per plane), at most 8: how far back
+/// along its light line a view sample reads the beams.
+fn back_planes(sample_distance: f32) -> u32 {
+    ((1.0 / sample_distance.max(1e-6)) - 1e-4).ceil().clamp(1.0, 8.0) as u32
 }
 
 /// Workgroups of the tiles pass for `view_groups` rect tiles and `light_tiles` light tiles to
@@ -265,7 +277,12 @@ fn make_params(
         ],
         culling: [brick_dims[0], brick_dims[1], brick_dims[2], u32::from(layout.lists)],
         light_box,
-        sweep: [front_planes(layout.view_planes), 0, 0, 0],
+        sweep: [
+            front_planes(layout.view_planes, layout.back_planes),
+            layout.back_planes,
+            0,
+            0,
+        ],
     }
 }
 
@@ -311,13 +328,14 @@ impl State {
             ("view_medium", pixels * rgba, features.medium),
             ("beam_pos", 2 * cells * 16, beams && refraction),
             ("beam_aux", 2 * cells * 16, beams),
-            // Without refraction also each beam's power on the planes before (the view reads it).
+            // Also each beam's power on the planes before (the view reads the unrefracted
+            // beams'; refracted ones deposit theirs a voxel back).
             (
                 "beam_power",
-                if refraction {
+                if refraction && layout.back_planes == 1 {
                     2
                 } else {
-                    2 + front_planes(layout.view_planes) as u64
+                    2 + front_planes(layout.view_planes, layout.back_planes) as u64
                 } * cells
                     * rgba,
                 beams,
@@ -406,6 +424,9 @@ pub(super) fn run(
         .beam_grid(light, scene.quality.beams_per_texel, !deposits)
         .shifted(req.jitter[1], req.jitter[2]);
     let mut layout = Layout::new(&view, grid, light_channels(&features, req.debug_view));
+    if features.transport == LightTransport::Beams {
+        layout.back_planes = back_planes(scene.quality.sample_distance);
+    }
     let windows = light_windows(&view, &grid, light, features.refraction);
     // Beams are stepped only near the volume's box where nothing outside it absorbs and the
     // image is all that is shown (the light diagnostics show the light outside the box too);
@@ -426,7 +447,7 @@ pub(super) fn run(
         && matches!(req.debug_view, DebugView::Image | DebugView::Medium)
     {
         let plane_bytes = grid.count() * precision.rgba_bytes();
-        let fit = (VIEW_RING_BYTES / plane_bytes.max(1)).saturating_sub(1) as u32;
+        let fit = (VIEW_RING_BYTES / plane_bytes.max(1)).saturating_sub(layout.back_planes as u64) as u32;
         layout.view_planes = match req.view_planes {
             0 => fit.clamp(1, VIEW_PLANES_PER_PASS),
             n => n,
@@ -461,7 +482,11 @@ pub(super) fn run(
     // Without a grid of cells to read, every beam deposits (`deposit_read` in beams.wgsl).
     let mut deposit_cells = vec![0u32; 12];
     let (light_box, light_margin, spans) = if layout.light_lists {
-        let (every, straight) = light_tiles::margins(&view, &grid, scene.quality.sample_distance, features.refraction);
+        // A view sample reads the beams `back_planes` - 1 planes further back along its light
+        // line than the plane before it.
+        let back = (layout.back_planes - 1) as f32 * view.step / light.z.max(1e-6);
+        let (every, straight) =
+            light_tiles::margins(&view, &grid, scene.quality.sample_distance, features.refraction, back);
         let scale = light_tiles::texture_scale(&view);
         // The occupied cells grown by what a view sample reads and a straight beam's deposit
         // reach (`straight`).
