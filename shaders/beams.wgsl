@@ -424,17 +424,23 @@ fn acc_load(slot: u32, m: u32, q: vec2<i32>) -> LightSample {
 }
 
 // The deposited light at continuous pixel coordinates t (pixel centres at integers): the sum
-// over the pyramid's levels of their bilinear lookups.
+// over the pyramid's levels of their bilinear lookups. A tap beyond the texels that cover the
+// rect takes the nearest that does (clamped to the edge): nothing is deposited beyond them,
+// and reading 0 there darkened the light within half a level texel of the rect's edge (a
+// quarter of it along the frame's edges in the light views, where the rect is the frame).
 fn deposited_at(slot: u32, t: vec2<f32>) -> LightSample {
     var sum = LightSample(vec3<f32>(0.0), vec3<f32>(0.0));
     for (var m = 0u; m < acc_levels(); m++) {
-        let tl = (t + vec2<f32>(0.5)) / f32(1u << m) - vec2<f32>(0.5);
+        let s = i32(1u << m);
+        let first = vec2<i32>(P.rect.xy) / s;
+        let last = (vec2<i32>(P.rect.zw) - vec2<i32>(1)) / s;
+        let tl = (t + vec2<f32>(0.5)) / f32(s) - vec2<f32>(0.5);
         let lo = floor(tl);
         let f = tl - lo;
         for (var n = 0u; n < 4u; n++) {
             let o = vec2<u32>(n & 1u, n >> 1u);
             let w = select(1.0 - f.x, f.x, o.x == 1u) * select(1.0 - f.y, f.y, o.y == 1u);
-            let l = acc_load(slot, m, vec2<i32>(lo) + vec2<i32>(o));
+            let l = acc_load(slot, m, clamp(vec2<i32>(lo) + vec2<i32>(o), first, last));
             sum.color += w * l.color;
             sum.dir += w * l.dir;
         }

@@ -413,6 +413,19 @@ pub(super) fn run(
     }
     let mut view = ViewSetup::new(scene, vol.dims, vol.spacing, w, h).map_err(RenderError::Setup)?;
     view.shift_planes(req.jitter[0]).map_err(RenderError::Setup)?;
+    if matches!(
+        req.debug_view,
+        DebugView::Light | DebugView::LightDirection | DebugView::Intensity
+    ) {
+        // The light views show the plane across the whole frame, not only where view rays can
+        // meet the volume (refracted beams deposit only within the rect).
+        view.rect = crate::scene::view::PixelRect {
+            x0: 0,
+            y0: 0,
+            x1: w,
+            y1: h,
+        };
+    }
     let planes_run = if req.debug_view == DebugView::Image || req.debug_view == DebugView::Medium {
         view.planes
     } else {
