@@ -367,12 +367,12 @@ fn add_light(texel: u32, amount: vec3<f32>, weight: f32, direction: vec3<f32>, d
 fn deposit(slot: u32, c: vec2<f32>, w_in: vec2<f32>, w_min: f32, amount: vec3<f32>, direction: vec3<f32>, seed: u32) {
     var w = max(w_in, vec2<f32>(w_min));
     let widest = max(w.x, w.y);
-    // Footprints within a thousandth of a level's texel stay on that level: straight beams
+    // Footprints within 1e-4 of a level's texel stay on that level: straight beams
     // one texel apart have footprints of 1 ± rounding, and beams that went to the next level
     // for the rounding alone spread their light over twice the texels in rows and columns.
     let m = min(u32(max(ceil(log2(max(widest * (1.0 - 1e-4), 1.0))), 0.0)), acc_levels() - 1u);
     let s = f32(1u << m);
-    // Wider than the level's texels (by that thousandth, or beyond the coarsest level: light
+    // Wider than the level's texels (by that 1e-4, or beyond the coarsest level: light
     // spread over more than 2^(levels-1) pixels by one beam) the box is split between two
     // texels all the same: its power stays whole, only its spread is narrower.
     let wl = min(w / s, vec2<f32>(1.0));

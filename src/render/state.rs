@@ -413,10 +413,12 @@ pub(super) fn run(
     }
     let mut view = ViewSetup::new(scene, vol.dims, vol.spacing, w, h).map_err(RenderError::Setup)?;
     view.shift_planes(req.jitter[0]).map_err(RenderError::Setup)?;
-    if matches!(
+    // The light views: no view rays, the light on one plane.
+    let diagnoses_light = matches!(
         req.debug_view,
         DebugView::Light | DebugView::LightDirection | DebugView::Intensity
-    ) {
+    );
+    if diagnoses_light {
         // The light views show the plane across the whole frame, not only where view rays can
         // meet the volume (refracted beams deposit only within the rect).
         view.rect = crate::scene::view::PixelRect {
@@ -437,7 +439,9 @@ pub(super) fn run(
         .beam_grid(light, scene.quality.beams_per_texel, !deposits)
         .shifted(req.jitter[1], req.jitter[2]);
     let mut layout = Layout::new(&view, grid, light_channels(&features, req.debug_view));
-    if features.transport == LightTransport::Beams {
+    if features.transport == LightTransport::Beams && !diagnoses_light {
+        // Only view samples read the beams' power back along their light line (the light
+        // views show the power on the plane): no ring of refracted beams' power for them.
         layout.back_planes = back_planes(scene.quality.sample_distance);
     }
     let windows = light_windows(&view, &grid, light, features.refraction);
@@ -625,10 +629,6 @@ pub(super) fn run(
     let light_acc = state.get("light_acc")?;
     let deposit_slot_bytes = deposit_ring(&features).then_some(light_acc.size / LIGHT_RING);
     let texels_per_plane = (layout.grid.count() + view.rect.width() as u64 * view.rect.height() as u64).max(1);
-    let diagnoses_light = matches!(
-        req.debug_view,
-        DebugView::Light | DebugView::LightDirection | DebugView::Intensity
-    );
     let planes_per_submit = (TEXELS_PER_SUBMIT / texels_per_plane).clamp(1, PLANES_PER_SUBMIT as u64) as u32;
     let push = |plane: u32, view_steps: u32, view_list: u32| Immediates {
         plane_index: plane,
