@@ -50,6 +50,25 @@ pub enum SceneError {
     Volume(#[from] VolumeError),
     #[error(transparent)]
     Transfer(#[from] TransferError),
+    /// A scene file's value out of range (`Invalid`, an inline transfer function's), with the
+    /// file.
+    #[error("scene file {} (TOML): {inner}", path.display())]
+    InFile { path: PathBuf, inner: Box<SceneError> },
+}
+
+impl SceneError {
+    /// The error with the scene file it came from, where its message does not already name
+    /// a file.
+    pub fn in_file(self, path: &Path) -> SceneError {
+        match self {
+            SceneError::Invalid(_)
+            | SceneError::Transfer(TransferError::Invalid { .. } | TransferError::Empty { .. }) => SceneError::InFile {
+                path: path.to_path_buf(),
+                inner: Box::new(self),
+            },
+            other => other,
+        }
+    }
 }
 
 impl crate::Classify for SceneError {
@@ -58,6 +77,7 @@ impl crate::Classify for SceneError {
             SceneError::Io { .. } | SceneError::Parse { .. } | SceneError::Invalid(_) => crate::ExitClass::Input,
             SceneError::Volume(e) => e.exit_class(),
             SceneError::Transfer(e) => e.exit_class(),
+            SceneError::InFile { inner, .. } => inner.exit_class(),
         }
     }
 }
@@ -159,7 +179,7 @@ impl Scene {
         if let Environment::Image { path, .. } = &mut scene.environment {
             *path = base.join(&*path);
         }
-        scene.validate()?;
+        scene.validate().map_err(|e| e.in_file(path))?;
         Ok(scene)
     }
 

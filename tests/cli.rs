@@ -170,7 +170,26 @@ fn inline_transfer_function_with_opacity_above_one() {
         &s,
         &["scene.toml"],
         EXIT_INPUT,
-        &["invalid transfer function", "opacity point 1", "1.5", "outside [0, 1]"],
+        &[
+            "scene file scene.toml (TOML): invalid transfer function",
+            "opacity point 1",
+            "1.5",
+            "outside [0, 1]",
+        ],
+    );
+}
+
+#[test]
+fn a_scene_value_out_of_range_names_the_scene_file() {
+    let s = Scratch::new("scene-range");
+    let mut text = scene_with_transfer("{ opacity = [[0.0, 0.0], [1.0, 0.5]] }");
+    text += "\n[quality]\nsample_distance = 40\n";
+    s.write("scene.toml", text);
+    render_fails(
+        &s,
+        &["scene.toml"],
+        EXIT_INPUT,
+        &["scene file scene.toml (TOML): invalid scene: quality.sample_distance 40 must be in [0.01, 16]"],
     );
 }
 
@@ -183,7 +202,12 @@ fn transfer_function_file_with_decreasing_points() {
         &s,
         &["scene.toml"],
         EXIT_INPUT,
-        &["invalid transfer function", "opacity point 2", "decreasing"],
+        &[
+            "transfer-function JSON file",
+            "tf.json: invalid transfer function",
+            "opacity point 2",
+            "decreasing",
+        ],
     );
 }
 
@@ -197,7 +221,7 @@ fn transfer_option_replaces_the_transfer_functions_of_a_builtin_scene() {
         &s,
         &["--scene", "ball-lens", "--transfer", "tf.json"],
         EXIT_INPUT,
-        &["invalid transfer function", "opacity point 0"],
+        &["tf.json: invalid transfer function", "opacity point 0"],
     );
 }
 

@@ -36,10 +36,10 @@ pub fn load_any(spec: &Path) -> Result<Imported, TransferError> {
         .and_then(|e| e.to_str())
         .unwrap_or("")
         .to_ascii_lowercase();
-    let imported = if ext == "itf" || text.contains("<InviwoWorkspace") {
-        inviwo(&text, &path)?
+    let (format, imported) = if ext == "itf" || text.contains("<InviwoWorkspace") {
+        ("Inviwo transfer-function", inviwo(&text, &path)?)
     } else if ext == "xml" || text.trim_start().starts_with('<') {
-        slicer(&text, &path, name.as_deref())?
+        ("3D Slicer presets", slicer(&text, &path, name.as_deref())?)
     } else {
         let value: serde_json::Value = serde_json::from_str(&text).map_err(|e| TransferError::Parse {
             path: path.clone(),
@@ -47,15 +47,18 @@ pub fn load_any(spec: &Path) -> Result<Imported, TransferError> {
         })?;
         let native = value.as_object().is_some_and(|o| o.contains_key("opacity"));
         if native {
-            Imported {
-                tf: TransferFunctions::from_json(&text, &path)?,
-                domain: None,
-            }
+            (
+                "transfer-function JSON",
+                Imported {
+                    tf: TransferFunctions::from_json(&text, &path)?,
+                    domain: None,
+                },
+            )
         } else {
-            paraview(&value, &path, name.as_deref())?
+            ("ParaView colour-map JSON", paraview(&value, &path, name.as_deref())?)
         }
     };
-    imported.tf.validate()?;
+    imported.tf.validate().map_err(|e| e.in_file(&path, format))?;
     Ok(imported)
 }
 

@@ -66,6 +66,28 @@ pub enum TransferError {
     Import { path: PathBuf, message: String },
     #[error("invalid transfer function: {function} has no control points")]
     Empty { function: &'static str },
+    /// An invalid function (`Invalid`, `Empty`) read from a file, with the file and its format.
+    #[error("{format} file {}: {inner}", path.display())]
+    InFile {
+        path: PathBuf,
+        format: &'static str,
+        inner: Box<TransferError>,
+    },
+}
+
+impl TransferError {
+    /// The error with the file it was read from and that file's format, where its message
+    /// does not already name a file.
+    pub fn in_file(self, path: &Path, format: &'static str) -> TransferError {
+        match self {
+            TransferError::Invalid { .. } | TransferError::Empty { .. } => TransferError::InFile {
+                path: path.to_path_buf(),
+                format,
+                inner: Box::new(self),
+            },
+            other => other,
+        }
+    }
 }
 
 impl crate::Classify for TransferError {
@@ -128,7 +150,7 @@ impl TransferFunctions {
             path: origin.to_path_buf(),
             message: e.to_string(),
         })?;
-        tf.validate()?;
+        tf.validate().map_err(|e| e.in_file(origin, "transfer-function JSON"))?;
         Ok(tf)
     }
 

@@ -154,7 +154,7 @@ pub fn open(path: &Path) -> Result<Loaded, VolumeError> {
 /// ([`dicom::list_series`]); other formats ignore `series`.
 pub fn open_series(path: &Path, series: Option<&str>) -> Result<Loaded, VolumeError> {
     if path.is_dir() {
-        return dicom::open_dicom(path, series);
+        return dicom::open_dicom(path, series).map_err(|e| e.in_file(path, "DICOM"));
     }
     let name = path
         .file_name()
@@ -162,22 +162,53 @@ pub fn open_series(path: &Path, series: Option<&str>) -> Result<Loaded, VolumeEr
         .unwrap_or("")
         .to_ascii_lowercase();
     let ext = name.rsplit('.').next().unwrap_or("");
-    match ext {
-        "nrrd" | "nhdr" => nrrd::open_nrrd(path),
-        "mha" | "mhd" => metaimage::load_metaimage(path),
-        "nii" | "hdr" => nifti::load_nifti(path),
-        "gz" if name.ends_with(".nii.gz") || name.ends_with(".hdr.gz") => nifti::load_nifti(path),
-        "vti" => vti::load_vti(path),
-        "dcm" | "dicom" | "ima" => dicom::open_dicom(path, series),
-        _ if name == "dicomdir" => dicom::open_dicom(path, series),
+    let (format, loaded) = match ext {
+        "nrrd" | "nhdr" => ("NRRD", nrrd::open_nrrd(path)),
+        "mha" | "mhd" => ("MetaImage", metaimage::load_metaimage(path)),
+        "nii" | "hdr" => ("NIfTI", nifti::load_nifti(path)),
+        "gz" if name.ends_with(".nii.gz") || name.ends_with(".hdr.gz") => ("NIfTI", nifti::load_nifti(path)),
+        "vti" => ("VTK image data", vti::load_vti(path)),
+        "dcm" | "dicom" | "ima" => ("DICOM", dicom::open_dicom(path, series)),
+        _ if name == "dicomdir" => ("DICOM", dicom::open_dicom(path, series)),
         _ => match raw::sidecar_path(path) {
-            Some(sidecar) => raw::load_raw_with_sidecar(path, &sidecar),
+            Some(sidecar) => ("raw", raw::load_raw_with_sidecar(path, &sidecar)),
             // Scanners often write DICOM files without an extension.
-            None if dicom::is_dicom_file(path) => dicom::open_dicom(path, series),
-            None => Err(VolumeError::UnknownFormat {
-                path: path.to_path_buf(),
-            }),
+            None if dicom::is_dicom_file(path) => ("DICOM", dicom::open_dicom(path, series)),
+            None => {
+                return Err(VolumeError::UnknownFormat {
+                    path: path.to_path_buf(),
+                })
+            }
         },
+    };
+    loaded.map_err(|e| e.in_file(path, format))
+}
+
+impl VolumeError {
+    /// The error with the file it came from and that file's format, where its message does
+    /// not already name a file (the volume's data, dims, spacing or scalar type).
+    pub fn in_file(self, path: &Path, format: &'static str) -> VolumeError {
+        match self {
+            VolumeError::SizeMismatch { .. }
+            | VolumeError::NonFinite { .. }
+            | VolumeError::InvalidDims(_)
+            | VolumeError::InvalidSpacing(_)
+            | VolumeError::TooLarge { .. }
+            | VolumeError::UnsupportedType(_) => VolumeError::InFile {
+                path: path.to_path_buf(),
+                format,
+                inner: Box::new(self),
+            },
+            other => other,
+        }
+    }
+
+    /// The error itself, without the file [`VolumeError::in_file`] added.
+    pub fn root(&self) -> &VolumeError {
+        match self {
+            VolumeError::InFile { inner, .. } => inner.root(),
+            other => other,
+        }
     }
 }
 
@@ -217,6 +248,14 @@ fn line_text(line: &Option<usize>) -> String {
 
 #[derive(Debug, thiserror::Error)]
 pub enum VolumeError {
+    /// An error that does not name the file by itself (its data, dims or spacing), with the
+    /// file and its format.
+    #[error("{} ({format}): {inner}", path.display())]
+    InFile {
+        path: PathBuf,
+        format: &'static str,
+        inner: Box<VolumeError>,
+    },
     #[error("cannot read {}", path.display())]
     Io { path: PathBuf, source: std::io::Error },
     #[error("volume data has {actual} samples but its dims need {expected}")]
@@ -308,6 +347,34 @@ impl crate::Classify for VolumeError {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn errors_in_a_files_data_name_the_file_and_its_format() {
+        // NaN voxels in an NRRD file, and dims the size check rejects in a MetaImage header:
+        // the message says which file and which format, and the error underneath is kept.
+        let dir = test_support::ScratchDir::new("volume-in-file");
+        let mut nrrd = b"NRRD0004\ntype: float\ndimension: 3\nsizes: 2 1 1\nencoding: raw\nendian: little\n\n".to_vec();
+        nrrd.extend([1.0f32, f32::NAN].iter().flat_map(|v| v.to_le_bytes()));
+        let path = dir.write("nan.nrrd", &nrrd);
+        let err = open(&path).unwrap_err();
+        assert!(matches!(err.root(), VolumeError::NonFinite { count: 1 }), "{err}");
+        assert_eq!(
+            err.to_string(),
+            format!(
+                "{} (NRRD): volume contains 1 non-finite voxel values (NaN or infinity)",
+                path.display()
+            )
+        );
+        let mha = b"ObjectType = Image\nNDims = 3\nDimSize = 0 2 2\nElementType = MET_UCHAR\nElementDataFile = LOCAL\n";
+        let path = dir.write("empty.mha", mha);
+        let err = open(&path).unwrap_err();
+        let text = err.to_string();
+        assert!(text.contains("empty.mha") && text.contains("MetaImage"), "{text}");
+        // Errors that already name their file are left as they are.
+        let err = open(&dir.write("short.nrrd", &nrrd[..nrrd.len() - 2])).unwrap_err();
+        assert!(!matches!(err, VolumeError::InFile { .. }), "{err}");
+        assert!(err.to_string().contains("short.nrrd"), "{err}");
+    }
 
     fn ramp(dims: [usize; 3]) -> Volume {
         let count = dims.iter().product();

@@ -172,6 +172,10 @@ pub fn load_raw_with_sidecar(path: &Path, sidecar: &Path) -> Result<Loaded, Volu
 
 /// Reads a raw file. The file must hold exactly `header_bytes` plus the samples `dims` need.
 pub fn load_raw(desc: &RawDesc) -> Result<Volume, VolumeError> {
+    load_raw_data(desc).map_err(|e| e.in_file(&desc.path, "raw"))
+}
+
+fn load_raw_data(desc: &RawDesc) -> Result<Volume, VolumeError> {
     let count = checked_voxel_count(desc.dims)?;
     let expected_bytes = count as u64 * desc.scalar.size_bytes() as u64;
     let io_err = |source| VolumeError::Io {
@@ -328,7 +332,9 @@ mod tests {
     #[test]
     fn absurd_dims_fail_before_touching_the_file() {
         let d = desc(PathBuf::from("does-not-exist.raw"), [1_000_000; 3], ScalarType::U8);
-        assert!(matches!(load_raw(&d), Err(VolumeError::TooLarge { .. })));
+        let err = load_raw(&d).unwrap_err();
+        assert!(matches!(err.root(), VolumeError::TooLarge { .. }), "{err}");
+        assert!(err.to_string().starts_with("does-not-exist.raw (raw): "), "{err}");
     }
 
     #[test]
@@ -356,7 +362,14 @@ mod tests {
             .flat_map(|v| v.to_le_bytes())
             .collect();
         let path = dir.write("nan.raw", &bytes);
-        let err = load_raw(&desc(path, [2, 2, 1], ScalarType::F32)).unwrap_err();
-        assert!(matches!(err, VolumeError::NonFinite { count: 2 }), "{err}");
+        let err = load_raw(&desc(path.clone(), [2, 2, 1], ScalarType::F32)).unwrap_err();
+        assert!(matches!(err.root(), VolumeError::NonFinite { count: 2 }), "{err}");
+        assert_eq!(
+            err.to_string(),
+            format!(
+                "{} (raw): volume contains 2 non-finite voxel values (NaN or infinity)",
+                path.display()
+            )
+        );
     }
 }

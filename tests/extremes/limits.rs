@@ -243,6 +243,7 @@ fn nan_and_infinite_voxels_are_rejected_with_a_clear_error() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{stderr}");
     assert!(stderr.contains("3 non-finite voxel values"), "{stderr}");
+    assert!(stderr.contains("nan.raw (raw): "), "the file and its format: {stderr}");
     assert!(!dir.join("out.png").exists());
     let _ = std::fs::remove_dir_all(&dir);
 }
