@@ -97,15 +97,30 @@ fn load_image(path: &Path) -> Result<(u32, u32, Vec<[f32; 4]>), EnvError> {
         }
         return Ok((size.width() as u32, size.height() as u32, px));
     }
-    let img = image::open(path).map_err(|e| err(e.to_string()))?.to_rgba32f();
+    let img = image::open(path).map_err(|e| err(format!("{e} ({SUPPORTED})")))?;
+    // Float images (Radiance HDR) hold linear radiance; 8- and 16-bit ones are sRGB encoded,
+    // and the renderer works in linear radiance.
+    let linear = matches!(
+        img,
+        image::DynamicImage::ImageRgb32F(_) | image::DynamicImage::ImageRgba32F(_)
+    );
+    let img = img.to_rgba32f();
     let (w, h) = img.dimensions();
-    // 8-bit images are sRGB encoded; the renderer works in linear radiance.
-    let px = img
-        .pixels()
-        .map(|p| [srgb_to_linear(p[0]), srgb_to_linear(p[1]), srgb_to_linear(p[2]), 1.0])
-        .collect();
+    let px: Vec<[f32; 4]> = if linear {
+        img.pixels().map(|p| [p[0], p[1], p[2], 1.0]).collect()
+    } else {
+        img.pixels()
+            .map(|p| [srgb_to_linear(p[0]), srgb_to_linear(p[1]), srgb_to_linear(p[2]), 1.0])
+            .collect()
+    };
+    if px.iter().flatten().any(|v| !v.is_finite()) {
+        return Err(err("contains NaN or infinite pixels".into()));
+    }
     Ok((w, h, px))
 }
+
+/// The environment image formats, for error messages.
+const SUPPORTED: &str = "supported: OpenEXR (.exr) and Radiance HDR (.hdr), linear; PNG, sRGB";
 
 pub fn srgb_to_linear(c: f32) -> f32 {
     if c <= 0.04045 {
@@ -138,6 +153,41 @@ impl EnvMap {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn radiance_hdr_images_are_read_as_linear_radiance() {
+        // A 2×1 Radiance HDR (RGBE: an 8-bit mantissa per channel, so values within 1/128 of
+        // their exponent's step) next to the same values as a PNG, which are sRGB encoded.
+        let dir = std::env::temp_dir().join(format!("caustica-env-hdr-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let values = [image::Rgb([0.25f32, 1.0, 6.0]), image::Rgb([0.5, 0.125, 2.0])];
+        let path = dir.join("sky.hdr");
+        let file = std::io::BufWriter::new(std::fs::File::create(&path).unwrap());
+        image::codecs::hdr::HdrEncoder::new(file).encode(&values, 2, 1).unwrap();
+        let (w, h, px) = load_image(&path).expect("hdr");
+        assert_eq!((w, h), (2, 1));
+        for (p, v) in px.iter().zip(&values) {
+            for c in 0..3 {
+                assert!((p[c] - v[c]).abs() <= v[c] / 64.0, "{p:?} vs {v:?}");
+            }
+        }
+        // An 8-bit PNG's 188 is sRGB: about 0.5 in linear radiance.
+        let png = dir.join("sky.png");
+        image::RgbImage::from_pixel(2, 1, image::Rgb([188, 188, 188]))
+            .save(&png)
+            .unwrap();
+        let (_, _, px) = load_image(&png).expect("png");
+        assert!((px[0][0] - 0.5).abs() < 0.01, "{:?}", px[0]);
+        // Anything else names the formats that are read.
+        let bad = dir.join("sky.tga");
+        std::fs::write(&bad, b"not an image").unwrap();
+        let message = load_image(&bad).unwrap_err().to_string();
+        assert!(
+            message.contains("sky.tga") && message.contains("Radiance HDR"),
+            "{message}"
+        );
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 
     #[test]
     fn mip_chain_preserves_mean_and_ends_at_one_texel() {
