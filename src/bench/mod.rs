@@ -150,7 +150,9 @@ impl Plan {
         }
     }
 
-    /// A small sweep that runs in minutes on a CPU Vulkan driver.
+    /// A small sweep that runs in minutes on a CPU Vulkan driver. The reference is sampled
+    /// like the default viewport after its 2×2 box filter (2×2 rays per pixel on its pixel
+    /// centres), with 64 rays per voxel² (`StepsPlan::quick`).
     pub fn quick(scenes: Vec<String>) -> Plan {
         Plan {
             scenes,
@@ -158,10 +160,11 @@ impl Plan {
             reference_size: 64,
             reference: ReferenceSettings {
                 photons: PhotonSettings {
-                    rays_per_voxel2: 16.0,
+                    rays_per_voxel2: 64.0,
                     ..PhotonSettings::default()
                 },
                 view_step_voxels: 0.5,
+                samples_per_axis: 2,
                 ..ReferenceSettings::default()
             },
             settings: Setting::one_at_a_time(128, &[0.5, 2.0, 4.0], &[64, 256]),
