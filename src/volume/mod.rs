@@ -167,7 +167,7 @@ pub fn open_series(path: &Path, series: Option<&str>) -> Result<Loaded, VolumeEr
         "mha" | "mhd" => ("MetaImage", metaimage::load_metaimage(path)),
         "nii" | "hdr" => ("NIfTI", nifti::load_nifti(path)),
         "gz" if name.ends_with(".nii.gz") || name.ends_with(".hdr.gz") => ("NIfTI", nifti::load_nifti(path)),
-        "vti" => ("VTK image data", vti::load_vti(path)),
+        "vti" => ("VTK ImageData", vti::load_vti(path)),
         "dcm" | "dicom" | "ima" => ("DICOM", dicom::open_dicom(path, series)),
         _ if name == "dicomdir" => ("DICOM", dicom::open_dicom(path, series)),
         _ => match raw::sidecar_path(path) {
