@@ -93,11 +93,14 @@ fn a_narrow_beam_spreads_in_a_forward_scattering_slab_like_the_monte_carlo_light
         }
         // Against the Monte Carlo light the target is 15 %; it holds at 32 voxels for every b
         // (measured 0.98–1.04). Elsewhere the model's own limits show (measured 0.71–1.30):
-        // near the entry the light crossing depth z has travelled further than z and spread
-        // more than the moments at path length z say (GPU 22–29 % narrower at 16 voxels);
-        // deep in, the Monte Carlo light's wide wings leave the 30-voxel window (its power
-        // there falls to 0.40–0.75 against the GPU's 0.74–0.91), which narrows or widens the
-        // windowed moments differently. 0.35 bounds those.
+        // near the entry (GPU 22–29 % narrower at 16 voxels) the Monte Carlo's net flux at the
+        // first plane has a negative mean r² (−5.6 to −32 voxels²: the slab's diffuse
+        // reflection crossing it backward at large radii), and its forward light holds light
+        // that has turned back and forth and light crossing steeply (offsets growing as tan θ
+        // per unit depth, the moments' as sin θ), which forward-only spread moments do not
+        // have (docs/accuracy.md); deep in, the Monte Carlo light's wide wings leave the
+        // 30-voxel window (its power there falls to 0.40–0.75 against the GPU's 0.74–0.91),
+        // which narrows or widens the windowed moments differently. 0.35 bounds those.
         let ratio = gpu_w / mc_w;
         let bound = if (depth - 32.0).abs() < 1.0 { 0.15 } else { 0.35 };
         assert!(
