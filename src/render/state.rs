@@ -421,12 +421,7 @@ pub(super) fn run(
     if diagnoses_light {
         // The light views show the plane across the whole frame, not only where view rays can
         // meet the volume (refracted beams deposit only within the rect).
-        view.rect = crate::scene::view::PixelRect {
-            x0: 0,
-            y0: 0,
-            x1: w,
-            y1: h,
-        };
+        view.rect = crate::scene::view::PixelRect::frame(w, h);
     }
     let planes_run = if req.debug_view == DebugView::Image || req.debug_view == DebugView::Medium {
         view.planes

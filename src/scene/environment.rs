@@ -92,10 +92,7 @@ fn load_image(path: &Path) -> Result<(u32, u32, Vec<[f32; 4]>), EnvError> {
         .map_err(|e| err(e.to_string()))?;
         let size = img.layer_data.size;
         let (_, px) = img.layer_data.channel_data.pixels;
-        if px.iter().flatten().any(|v| !v.is_finite()) {
-            return Err(err("contains NaN or infinite pixels".into()));
-        }
-        return Ok((size.width() as u32, size.height() as u32, px));
+        return finite((size.width() as u32, size.height() as u32, px)).map_err(err);
     }
     let img = image::open(path).map_err(|e| err(format!("{e} ({SUPPORTED})")))?;
     // Float images (Radiance HDR) hold linear radiance; 8- and 16-bit ones are sRGB encoded,
@@ -113,10 +110,15 @@ fn load_image(path: &Path) -> Result<(u32, u32, Vec<[f32; 4]>), EnvError> {
             .map(|p| [srgb_to_linear(p[0]), srgb_to_linear(p[1]), srgb_to_linear(p[2]), 1.0])
             .collect()
     };
-    if px.iter().flatten().any(|v| !v.is_finite()) {
-        return Err(err("contains NaN or infinite pixels".into()));
+    finite((w, h, px)).map_err(err)
+}
+
+/// The image as read, or why not: NaN or infinite pixels (of either float format).
+fn finite(image: (u32, u32, Vec<[f32; 4]>)) -> Result<(u32, u32, Vec<[f32; 4]>), String> {
+    if image.2.iter().flatten().any(|v| !v.is_finite()) {
+        return Err("contains NaN or infinite pixels".into());
     }
-    Ok((w, h, px))
+    Ok(image)
 }
 
 /// The environment image formats, for error messages.
@@ -184,6 +186,17 @@ mod tests {
         let message = load_image(&bad).unwrap_err().to_string();
         assert!(
             message.contains("sky.tga") && message.contains("Radiance HDR"),
+            "{message}"
+        );
+        // A float image with a NaN pixel is refused, naming the problem.
+        let nan = dir.join("nan.exr");
+        exr::prelude::write_rgba_file(&nan, 2, 1, |x, _| {
+            (if x == 1 { f32::NAN } else { 0.5 }, 0.5f32, 0.5f32, 1.0f32)
+        })
+        .unwrap();
+        let message = load_image(&nan).unwrap_err().to_string();
+        assert!(
+            message.contains("nan.exr") && message.contains("NaN or infinite"),
             "{message}"
         );
         let _ = std::fs::remove_dir_all(&dir);

@@ -42,6 +42,16 @@ pub struct PixelRect {
 }
 
 impl PixelRect {
+    /// The whole frame of `width`×`height` pixels.
+    pub fn frame(width: u32, height: u32) -> PixelRect {
+        PixelRect {
+            x0: 0,
+            y0: 0,
+            x1: width,
+            y1: height,
+        }
+    }
+
     pub fn width(&self) -> u32 {
         self.x1 - self.x0
     }
@@ -174,12 +184,7 @@ impl ViewSetup {
             planes: planes as u32,
             projection: [f, f, w * 0.5, h * 0.5],
             perspective,
-            rect: PixelRect {
-                x0: 0,
-                y0: 0,
-                x1: width,
-                y1: height,
-            },
+            rect: PixelRect::frame(width, height),
             width,
             height,
         };
