@@ -430,8 +430,11 @@ pub(super) fn run(
     };
     let light = light_direction(&scene.light);
     let deposits = features.transport == LightTransport::Beams && features.refraction;
+    // Beams that keep their cells (no refraction) and carry only the unscattered light.
+    let per_voxel =
+        features.transport == LightTransport::Beams && !features.refraction && !features.scatter && !features.lbm;
     let grid = view
-        .beam_grid(light, scene.quality.beams_per_texel, !deposits)
+        .beam_grid(light, scene.quality.beams_per_texel, !deposits, per_voxel)
         .shifted(req.jitter[1], req.jitter[2]);
     let mut layout = Layout::new(&view, grid, light_channels(&features, req.debug_view));
     if features.transport == LightTransport::Beams && !diagnoses_light {

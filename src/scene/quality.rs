@@ -190,7 +190,8 @@ pub struct Quality {
     /// How light travels from plane to plane.
     pub light_transport: LightTransport,
     /// Light-grid cells (beams) per image pixel and axis on the first plane: 1 maps one to
-    /// each pixel; 2 traces four times as many for smoother caustics.
+    /// each pixel; 2 traces four times as many for smoother caustics. Unrefracted light also
+    /// gets at most this many per voxel and axis (`ViewSetup::beam_grid`).
     pub beams_per_texel: f32,
     /// Reconstruction of ∇η.
     pub gradient: Gradient,

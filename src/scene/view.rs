@@ -105,6 +105,8 @@ pub struct ViewSetup {
     pub z_first: f32,
     /// Distance between planes in world units (Δs).
     pub step: f32,
+    /// The smallest voxel dimension in world units.
+    pub voxel: f32,
     pub planes: u32,
     pub projection: [f32; 4],
     pub perspective: bool,
@@ -181,6 +183,7 @@ impl ViewSetup {
             radius,
             z_first: z_min,
             step,
+            voxel: min_spacing,
             planes: planes as u32,
             projection: [f, f, w * 0.5, h * 0.5],
             perspective,
@@ -247,7 +250,12 @@ impl ViewSetup {
     /// need not be traced finer than the image resolves it there. Beams that deposit their
     /// power keep one cell per plane-0 pixel, so that an unrefracted beam is never wider than
     /// a pixel (it lands on the finest level of the deposit pyramid).
-    pub fn beam_grid(&self, light: Vec3, beams_per_texel: f32, per_centre_pixel: bool) -> BeamGrid {
+    ///
+    /// With `per_voxel` the cells are also no smaller than a voxel (over `beams_per_texel`):
+    /// light that keeps its cells carries no detail across them finer than the volume that
+    /// shadows it (and the view takes the last voxel of its way along each sample's own light
+    /// line), so where a pixel is smaller than a voxel a finer grid only costs time.
+    pub fn beam_grid(&self, light: Vec3, beams_per_texel: f32, per_centre_pixel: bool, per_voxel: bool) -> BeamGrid {
         let z0 = self.z_first;
         let z_last = self.plane_z(self.planes - 1);
         let to_plane0 = |p: Vec3| self.pixel_of(p - light * ((p.z - z0) / light.z));
@@ -282,6 +290,12 @@ impl ViewSetup {
             1.0
         };
         let mut stride = pixels_per_centre_pixel / beams_per_texel;
+        if per_voxel {
+            // A voxel's cross-section is the same on every plane (parallel light): its size in
+            // plane-0 pixels.
+            let pixels_per_unit = self.projection[0] / if self.perspective { z0 } else { 1.0 };
+            stride = stride.max(self.voxel * pixels_per_unit / beams_per_texel);
+        }
         let pixels = (self.width as f32 * self.height as f32).max(1.0);
         let budget = MAX_BEAMS_PER_PIXEL * pixels * beams_per_texel * beams_per_texel;
         let area = ((hi - lo).x + 2.0 * stride) * ((hi - lo).y + 2.0 * stride);
