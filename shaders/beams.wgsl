@@ -186,6 +186,14 @@ fn in_light_window(t: vec2<u32>, k: u32) -> bool {
     return r.x >= 0 && r.y >= 0 && r.x < i32(w.z) && u32(r.y) * w.z + u32(r.x) < w.w;
 }
 
+// Whether a light tile whose beams have all gone dark can stop being stepped: where nothing
+// bends the light, exchanges it between beams (the soft light) or scatters it, a beam's
+// power only falls, so one that carries none never will again, and a beam's step reads no
+// other beam. Its power on the planes the view reads back stays 0 (`light_lit`).
+fn dark_tiles_end() -> bool {
+    return BEAMS && !REFRACTION && !LIGHT_FILTER && !SCATTER && !LBM;
+}
+
 // Lists light tile t for plane k (>= 1) if its beams are to be stepped there: from the plane
 // its beams or a neighbouring tile's may come within the margin of a cell where the light
 // can change (`light_start`), until neither it nor a neighbour has a beam left that can come
@@ -204,10 +212,19 @@ fn list_light_tile(t: u32, k: u32) {
     if (k < start || atomicLoad(&light_end[t]) != NEVER) {
         return;
     }
+    // Dark for good: stepped without light on the planes whose power the view reads back
+    // (`front_power_region`) and on the last two (the power on the plane).
+    let held = max(P.sweep.x, 2u);
+    if (dark_tiles_end() && k > start + held && atomicLoad(&light_lit[t]) + held < k) {
+        atomicStore(&light_end[t], k);
+        return;
+    }
     var stepped = k == start;
     // Whether its beams and all they read were stepped on plane k-1 (on plane 1 every beam
-    // read is plane 0's, stored for all); else it is listed for `LIGHT_EDGE`.
+    // read is plane 0's, stored for all); else it is listed for `LIGHT_EDGE`. Where a beam's
+    // step reads no other beam (`dark_tiles_end`), its own tile's steps are all that count.
     var current = k == 1u || k != start;
+    let own = dark_tiles_end();
     let c = vec2<i32>(vec2<u32>(t % tx, t / tx));
     for (var dy = -1; dy <= 1; dy++) {
         for (var dx = -1; dx <= 1; dx++) {
@@ -222,7 +239,7 @@ fn list_light_tile(t: u32, k: u32) {
                     stepped = true;
                 }
                 // Stepped on plane k-1 (an end written meanwhile for another tile is k).
-                current = current && s.y <= k - 1u && atomicLoad(&light_end[u]) > k - 1u;
+                current = current && (own || (s.y <= k - 1u && atomicLoad(&light_end[u]) > k - 1u));
             }
         }
     }
@@ -778,6 +795,9 @@ fn beams_step(ij: vec2<u32>, k: u32, tile: u32, mode: u32) {
         }
     }
     store_beam(index, k % 2u, k, b);
+    if (dark_tiles_end() && mode != LIGHT_WINDOW && max(front.r, max(front.g, front.b)) > 0.0) {
+        atomicMax(&light_lit[tile], k);
+    }
     if (REFRACTION && mode != LIGHT_WINDOW) {
         // A bent beam's end is found here; a straight one's on the CPU (`light_start.z`).
         if (reaches_box(b.pos, light_direction(b.v), reach)) {

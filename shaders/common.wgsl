@@ -193,6 +193,9 @@ const VIEW_TILE_BENT: u32 = 0x80000000u;
 // units as f32 bits; the padding before cell 0; cells per texture unit as f32 bits) and one
 // word per cell; cells along x 0: every beam deposits.
 @group(0) @binding(33) var<storage, read> deposit_cells: array<u32>;
+// Beams whose light only falls (`dark_tiles_end` in beams.wgsl), per tile of the light grid:
+// the last plane on which one of its beams carried light.
+@group(0) @binding(34) var<storage, read_write> light_lit: array<atomic<u32>>;
 
 var<immediate> I: Immediates;
 

@@ -250,3 +250,49 @@ fn unrefracted_light_traced_per_voxel_matches_the_cpu_image_where_pixels_are_sma
     assert!(mean_coarse < MEAN_TOL && max_coarse < MAX_TOL);
     assert!(mean_fine < MEAN_TOL && max_fine < MAX_TOL);
 }
+
+#[test]
+fn light_tiles_stop_once_their_light_is_gone_and_the_image_stays_the_cpus() {
+    // A faint haze fills the volume; in the second volume a wall that lets no light through
+    // (transmittance 0.2^19 per beam, 0 in 16 bits) covers most of the frame from 15 % to 45 %
+    // of the depth, its edges ramping over two voxels, the box's faces clear of it. Where
+    // nothing bends, exchanges or scatters light, a beam without power never gets any again,
+    // so the tiles of beams behind the wall stop being stepped a few planes after it, while in
+    // the haze alone every tile is stepped to the back (without that rule both counts are
+    // equal). Tiles of 8 × 8 beams that straddle the wall's edge or the box's go on, which
+    // bounds the saving here to about a fifth (measured 1335 steps against 1650). The image,
+    // whose rays see past the wall's edge, stays within the tolerances above of the CPU's
+    // (measured: mean 8.4e-5, max 8.2e-4).
+    let mut gpu = Gpu::new();
+    let n = 64;
+    let tf = plain_tf(
+        vec![[0.0, 0.0], [0.2, 0.0], [0.35, 0.04], [0.9, 0.8]],
+        vec![[0.0, 0.9, 0.8, 0.7], [1.0, 0.9, 0.8, 0.7]],
+    );
+    let scene = head_on_scene(&tf);
+    let ramp = |d: f32| (d * n as f32 / 2.0 + 0.5).clamp(0.0, 1.0);
+    let haze = volume_from(n, |_, _, _| 0.3);
+    let wall = volume_from(n, |x, y, z| {
+        0.3 + 0.7 * ramp((x - 0.08).min(0.85 - x)) * ramp((y - 0.08).min(0.92 - y)) * ramp((z - 0.15).min(0.45 - z))
+    });
+    let render = |gpu: &mut Gpu, volume: &caustica::volume::Volume| {
+        gpu.render(
+            &prepared(scene.clone(), volume.clone(), tf.clone()),
+            &RenderRequest::new(SIZE, SIZE),
+        )
+    };
+    let in_haze = render(&mut gpu, &haze)
+        .stats
+        .light_steps
+        .expect("light tiles are listed");
+    let out = render(&mut gpu, &wall);
+    let behind_wall = out.stats.light_steps.expect("light tiles are listed");
+    let cpu_img = straight::render(&scene, &wall, &tf, SIZE, SIZE, [0.0; 3]).unwrap();
+    let (mean, max) = diff(&out.image.pixels, &cpu_img);
+    eprintln!("light tile steps: {behind_wall} behind the wall, {in_haze} in the haze; mean |Δ| to CPU {mean:.2e}, max {max:.2e}");
+    assert!(
+        (behind_wall as f64) < 0.9 * in_haze as f64,
+        "tiles behind the wall kept being stepped: {behind_wall} steps against {in_haze}"
+    );
+    assert!(mean < MEAN_TOL && max < MAX_TOL, "mean {mean}, max {max}");
+}

@@ -132,6 +132,9 @@ pub fn render(args: &RenderArgs) -> Result<()> {
             s.rect[0],
             s.rect[1],
         );
+        if let Some(steps) = s.light_steps {
+            println!("light tile steps: {steps} (tiles of 8×8 beams stepped, over all planes)");
+        }
         if let Some(l) = &s.lbm {
             println!(
                 "lbm: {}×{}×{} cells of {} voxels, {} steps, residual {:.1e}{}, {:.1} GPU ms (in the total), {:.1} MiB",

@@ -139,6 +139,9 @@ pub struct RenderStats {
     /// View passes of the sweep (one per plane, or fewer where each advances the rays over
     /// several: [`RenderRequest::view_planes`]).
     pub view_passes: u32,
+    /// Light-tile steps (tiles of 8 × 8 beams, over all planes) where light tiles are listed
+    /// per plane: the light's work.
+    pub light_steps: Option<u64>,
     /// Pixels whose rays can meet the volume, width × height.
     pub rect: [u32; 2],
     /// Precision the render actually used (lower than the scene's after an out-of-memory retry).

@@ -135,6 +135,18 @@ fn back_planes(sample_distance: f32) -> u32 {
     ((1.0 / sample_distance.max(1e-6)) - 1e-4).ceil().clamp(1.0, 8.0) as u32
 }
 
+/// Light-tile steps of a sweep with light tiles listed: each tile is stepped from the plane
+/// its span starts (`light_start.y`) until the plane its end was written on (`light_end`;
+/// NEVER: to the last plane).
+fn tile_steps(spans: &[[u32; 4]], ends: &[u32], planes: u32) -> u64 {
+    spans
+        .iter()
+        .zip(ends)
+        .filter(|(s, _)| s[1] != NEVER)
+        .map(|(s, &end)| end.min(planes).saturating_sub(s[1]) as u64)
+        .sum()
+}
+
 /// Workgroups of the tiles pass for `view_groups` rect tiles and `light_tiles` light tiles to
 /// list: one invocation per rect tile, then one per light tile (a workgroup whose invocations
 /// have nothing to do still costs its launch on a CPU driver).
@@ -320,7 +332,7 @@ impl State {
         let refraction = features.refraction;
         let back_dir = !beams && (refraction || features.intensity_correction);
         let levels = if features.scatter { SCATTER_LEVELS } else { ACC_LEVELS };
-        let sizes: [(&str, u64, bool); 20] = [
+        let sizes: [(&str, u64, bool); 21] = [
             ("view_light", pixels * rgba, true),
             ("view_ray", pixels * 16, refraction),
             ("view_aux", pixels * 16, true),
@@ -354,6 +366,7 @@ impl State {
             ("tile_args", LIGHT_RING * 12, true),
             ("light_end", layout.beam_groups as u64 * 4, layout.light_lists),
             ("light_alive", layout.beam_groups as u64 * 4, layout.light_lists),
+            ("light_lit", layout.beam_groups as u64 * 4, layout.light_lists),
             ("light_lists", 4 * layout.beam_groups as u64 * 4, layout.light_lists),
             ("light_args", 4 * 12, true),
         ];
@@ -571,6 +584,15 @@ pub(super) fn run(
     let scatter_table = Buffer::new_storage_from(ctx, "scatter table", bytemuck::cast_slice(&table))?;
     let bytes = w as u64 * h as u64 * 16;
     let mut readback = Buffer::new_readback(ctx, "output readback", bytes)?;
+    // Where the light tiles stopped being stepped, for the count of their steps.
+    let mut ends_readback = match layout.light_lists {
+        true => Some(Buffer::new_readback(
+            ctx,
+            "light tile ends readback",
+            state.get("light_end")?.size,
+        )?),
+        false => None,
+    };
     let ts = Timestamps::new(ctx, 2)?;
 
     let mut sets = Vec::new();
@@ -612,6 +634,7 @@ pub(super) fn run(
     rec.fill(state.get("tile_args")?, 0);
     rec.fill(state.get("light_end")?, NEVER);
     rec.fill(state.get("light_alive")?, 0);
+    rec.fill(state.get("light_lit")?, 0);
     rec.fill(state.get("light_args")?, 0);
     let tile_args = state.get("tile_args")?;
     let light_args = state.get("light_args")?;
@@ -659,6 +682,7 @@ pub(super) fn run(
     let mut last_view = 0u32;
     let mut plane = 1u32;
     let mut rec = Some(rec);
+
     let chunk = if req.cancel.is_some() {
         (PIXEL_PLANES_PER_SUBMIT_CANCELLABLE as u64 / texels_per_plane).clamp(1, 8) as u32
     } else {
@@ -740,6 +764,10 @@ pub(super) fn run(
             )?;
             r.compute_to_transfer();
             r.copy_buffer(state.get("image_out")?, &mut readback, bytes);
+            if let Some(readback) = ends_readback.as_mut() {
+                let ends = state.get("light_end")?;
+                r.copy_buffer(ends, readback, ends.size);
+            }
         }
         r.timestamp(&ts, 1);
         r.submit_and_wait()?;
@@ -752,6 +780,13 @@ pub(super) fn run(
             if let Some(b) = bar {
                 b.finish_and_clear();
             }
+            let light_steps = match &ends_readback {
+                Some(b) => {
+                    let e: Vec<u32> = bytemuck::pod_collect_to_vec(b.read()?);
+                    Some(tile_steps(&spans, &e, view.planes))
+                }
+                None => None,
+            };
             let bytes = readback.read()?;
             let pixels: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(bytes);
             return Ok(RenderOutput {
@@ -770,6 +805,7 @@ pub(super) fn run(
                     state_bytes: state.bytes,
                     light_grid: [layout.grid.width, layout.grid.height],
                     view_passes,
+                    light_steps,
                     rect: [view.rect.width(), view.rect.height()],
                     precision,
                     reductions: Vec::new(),
