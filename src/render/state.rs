@@ -585,13 +585,11 @@ pub(super) fn run(
     let bytes = w as u64 * h as u64 * 16;
     let mut readback = Buffer::new_readback(ctx, "output readback", bytes)?;
     // Where the light tiles stopped being stepped, for the count of their steps.
-    let mut ends_readback = match layout.light_lists {
-        true => Some(Buffer::new_readback(
-            ctx,
-            "light tile ends readback",
-            state.get("light_end")?.size,
-        )?),
-        false => None,
+    let mut ends_readback = if layout.light_lists {
+        let size = state.get("light_end")?.size;
+        Some(Buffer::new_readback(ctx, "light tile ends readback", size)?)
+    } else {
+        None
     };
     let ts = Timestamps::new(ctx, 2)?;
 
@@ -682,7 +680,6 @@ pub(super) fn run(
     let mut last_view = 0u32;
     let mut plane = 1u32;
     let mut rec = Some(rec);
-
     let chunk = if req.cancel.is_some() {
         (PIXEL_PLANES_PER_SUBMIT_CANCELLABLE as u64 / texels_per_plane).clamp(1, 8) as u32
     } else {
