@@ -224,9 +224,13 @@ fn tiny_speed_bench_counts_the_memory_it_reports() {
         fit.exponent.is_some_and(f64::is_finite) && fit.fixed_ms_per_plane.is_some(),
         "{fit:?}"
     );
+    // The light's work is counted where its tiles are listed, and grows with the grid.
+    let steps = |r: &speed::SpeedRow| r.light_steps.expect("ball-lens lists its light tiles") as f64;
+    assert!(steps(a) > 0.0 && steps(b) > steps(a), "{a:?} {b:?}");
     let csv = std::fs::read_to_string(&report.csv).unwrap();
     assert_eq!(csv.lines().count(), 4, "{csv}");
     assert!(csv.starts_with("scene,features,viewport,tiny,planes"));
+    assert!(csv.contains(",light_tile_steps,"), "{csv}");
     let fit_csv = std::fs::read_to_string(&report.fit_csv).unwrap();
     assert_eq!(fit_csv.lines().count(), 2, "{fit_csv}");
     let _ = std::fs::remove_dir_all(&dir);

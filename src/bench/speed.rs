@@ -123,6 +123,8 @@ pub struct SpeedRow {
     /// Time of the whole `Renderer::render` call (recording, submission, waits, read-back).
     pub wall_ms: Spread,
     pub light_grid: [u32; 2],
+    /// Light-tile steps (`RenderStats::light_steps`), where light tiles are listed.
+    pub light_steps: Option<u64>,
     /// Pixels whose rays can meet the volume, width × height.
     pub footprint: [u32; 2],
     pub state_bytes: u64,
@@ -246,6 +248,7 @@ fn measure(
         gpu_ms: Spread::of(gpu),
         wall_ms: Spread::of(wall),
         light_grid: s.light_grid,
+        light_steps: s.light_steps,
         footprint: s.rect,
         state_bytes: s.state_bytes,
         texture_bytes: s.texture_bytes,

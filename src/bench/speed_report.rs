@@ -47,13 +47,13 @@ pub fn write_markdown(path: &Path, rows: &[SpeedRow], fits: &[SpeedFit], c: &Con
     }
     s.push_str("\n\n");
     s.push_str(
-        "| scene | features | viewport | planes | GPU ms per frame | wall ms | ms/plane | light grid | footprint px | state MiB | textures MiB | peak device MiB | peak host MiB |\n",
+        "| scene | features | viewport | planes | GPU ms per frame | wall ms | ms/plane | light grid | light tile steps | footprint px | state MiB | textures MiB | peak device MiB | peak host MiB |\n",
     );
-    s.push_str("|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    s.push_str("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for r in rows {
         let _ = writeln!(
             s,
-            "| {} | {} | {}² | {} | {:.1} ({:.1}–{:.1}) | {:.1} | {:.3} | {}×{} | {}×{} | {:.1} | {:.1} | {:.1} | {:.1} |",
+            "| {} | {} | {}² | {} | {:.1} ({:.1}–{:.1}) | {:.1} | {:.3} | {}×{} | {} | {}×{} | {:.1} | {:.1} | {:.1} | {:.1} |",
             r.scene,
             r.features,
             r.size,
@@ -65,6 +65,7 @@ pub fn write_markdown(path: &Path, rows: &[SpeedRow], fits: &[SpeedFit], c: &Con
             r.ms_per_plane(),
             r.light_grid[0],
             r.light_grid[1],
+            r.light_steps.map_or_else(|| "–".to_string(), |n| n.to_string()),
             r.footprint[0],
             r.footprint[1],
             mib(r.state_bytes),
@@ -108,13 +109,13 @@ pub fn write_markdown(path: &Path, rows: &[SpeedRow], fits: &[SpeedFit], c: &Con
 pub fn write_csv(path: &Path, rows: &[SpeedRow]) -> Result<(), String> {
     let mut s = String::from(
         "scene,features,viewport,tiny,planes,gpu_ms_median,gpu_ms_min,gpu_ms_max,wall_ms_median,ms_per_plane,\
-         light_grid_w,light_grid_h,footprint_w,footprint_h,state_bytes,texture_bytes,\
+         light_grid_w,light_grid_h,light_tile_steps,footprint_w,footprint_h,state_bytes,texture_bytes,\
          peak_device_local_bytes,peak_host_visible_bytes\n",
     );
     for r in rows {
         let _ = writeln!(
             s,
-            "{},{},{},{},{},{:.3},{:.3},{:.3},{:.3},{:.5},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{:.3},{:.3},{:.3},{:.3},{:.5},{},{},{},{},{},{},{},{},{}",
             r.scene,
             r.features,
             r.size,
@@ -127,6 +128,7 @@ pub fn write_csv(path: &Path, rows: &[SpeedRow]) -> Result<(), String> {
             r.ms_per_plane(),
             r.light_grid[0],
             r.light_grid[1],
+            r.light_steps.map_or_else(String::new, |n| n.to_string()),
             r.footprint[0],
             r.footprint[1],
             r.state_bytes,

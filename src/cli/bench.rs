@@ -57,7 +57,7 @@ pub struct BenchArgs {
     #[arg(long)]
     size: Option<u32>,
     /// Instead of the sweep, the speed table: GPU ms per frame and per plane, planes,
-    /// light-grid cells, footprint pixels and peak memory for each scene at 128², 256², 512²
+    /// light-grid cells, light tile steps, footprint pixels and peak memory for each scene at 128², 256², 512²
     /// and 1024² (128² and 256² with --quick; on a CPU driver up to 512², or 256² with --quick)
     /// and 8² (the fixed cost per plane), with the
     /// scaling fit; writes speed.md, speed.csv and speed-fit.csv. Scenes: the built-in ones at
