@@ -775,3 +775,73 @@ fn ball_lens_light_is_round_through_and_behind_the_focus() {
         assert!(sectors <= 0.05, "angular structure {sectors} at {at:.2} R");
     }
 }
+
+#[test]
+fn refracted_beams_finer_than_half_a_voxel_are_not_traced_and_the_light_stays_as_close_to_the_exact_trace() {
+    // A ball of R = 8 voxels seen at four texels per voxel: the refracted beams are capped at
+    // two per voxel and axis (`REFRACTED_BEAMS_PER_VOXEL`), half a beam per texel, a quarter of
+    // the cells of a beam per texel (what 2² beams per texel give here, capped at four per
+    // voxel). Both against the exact trace of the continuous ball on the same texels
+    // (`graded_ball`, 8² rays per texel: a trace of the voxels with a ray per texel is itself
+    // 0.1–0.2 off at four texels per voxel), through and behind the focus.
+    let mut gpu = Gpu::new();
+    let r = 8.0;
+    let size = 128u32;
+    let (volume, tf, centre_world) = ball_lens(r).expect("ball volume");
+    let scene = ball_scene(&volume, &tf, r);
+    let texels_per_voxel = size as f64 / (4.0 * r);
+    let view = ViewSetup::new(&scene, volume.dims, volume.spacing, size, size).expect("view");
+    let centre_z = view_z(&view, Vec3::new(0.0, 0.0, centre_world as f32));
+    let mut fine_scene = scene.clone();
+    fine_scene.quality.beams_per_texel = 2.0;
+    let ball = graded_ball(&volume, r, centre_world);
+    let capped = prepared(scene, volume.clone(), tf.clone());
+    let fine = prepared(fine_scene, volume, tf);
+    let planes: Vec<(u32, f32, f64)> = [1.25, 1.5, 2.0, 3.0]
+        .iter()
+        .map(|m| nearest_sweep_plane(&view, centre_z + m * r))
+        .collect();
+    let zs: Vec<f64> = planes.iter().map(|p| p.2).collect();
+    let settings = PlaneSettings {
+        rays_per_texel: 8,
+        ..PlaneSettings::default()
+    };
+    let exact = plane_light::trace_scene_through(&capped, &ball, size, size, &zs, &settings).expect("exact trace");
+    let c = DVec2::splat((size as f64 - 1.0) / 2.0);
+    let radius = r * texels_per_voxel; // texels
+    let mut report = Vec::new();
+    for (i, &(_, depth, z)) in planes.iter().enumerate() {
+        let truth = exact.planes[i].channel(1);
+        let region = Region::square(&truth, c, 1.5 * radius);
+        let mut measured = Vec::new();
+        for p in [&capped, &fine] {
+            let out = gpu.debug(p, size, DebugView::Light, depth);
+            let cells = out.stats.light_grid[0] as f64 * out.stats.light_grid[1] as f64;
+            let l = ScalarImage::from_image(&out.image, 1);
+            let l1 = measure::relative_l1(&l, &truth, region).expect("light on the plane");
+            measured.push((cells, l1, measure::total(&l, Region::all(&l))));
+        }
+        let at = (z - centre_z) / r;
+        report.push(format!(
+            "{at:.2} R: (cells, L1, total) capped {:.3?}, a beam per texel {:.3?}",
+            measured[0], measured[1]
+        ));
+        let ((cells, l1, total), (fine_cells, fine_l1, fine_total)) = (measured[0], measured[1]);
+        let total = total / fine_total;
+        // The grids cover the same region: a quarter of the cells, within a row and a column
+        // of the coarser grid's rounding.
+        assert!(cells < 0.3 * fine_cells, "cells {cells} against {fine_cells}");
+        // Bound: no more than 0.02 above the finer grid's L1 (the margin between the caustics
+        // checks' 0.10 and the default's 0.08 at a texel per voxel), and the same power on the
+        // plane within the 1 % of the caustics checks (both grids conserve it).
+        assert!(
+            l1 <= fine_l1 + 0.02,
+            "L1 {l1} against {fine_l1} with a beam per texel at {at:.2} R"
+        );
+        assert!(
+            (total - 1.0).abs() <= 0.01,
+            "total power {total} of the finer grid's at {at:.2} R"
+        );
+    }
+    eprintln!("ball lens, R = 8 at four texels per voxel:\n  {}", report.join("\n  "));
+}

@@ -129,7 +129,7 @@ mod tests {
         let voxels = [64, 40, 64];
         let view = ViewSetup::new(&scene, voxels, [1.0; 3], 48, 48).unwrap();
         let light = light_direction(&scene.light);
-        let grid = view.beam_grid(light, 1.0, false, false);
+        let grid = view.beam_grid(light, 1.0, false, None);
         let scale = texture_scale(&view);
         let margin = scale.map(|s| s * 2.0 * view.step);
         // A few occupied cells: one inside, one at a corner, one at a face.

@@ -443,9 +443,15 @@ pub(super) fn run(
     };
     let light = light_direction(&scene.light);
     let deposits = features.transport == LightTransport::Beams && features.refraction;
-    // Beams that keep their cells (no refraction) and carry only the unscattered light.
-    let per_voxel =
-        features.transport == LightTransport::Beams && !features.refraction && !features.scatter && !features.lbm;
+    // Beams that carry only the unscattered light: at most one per voxel where they keep
+    // their cells (no refraction), a few where they are bent.
+    let per_voxel = if features.transport != LightTransport::Beams || features.scatter || features.lbm {
+        None
+    } else if features.refraction {
+        Some(crate::scene::view::REFRACTED_BEAMS_PER_VOXEL)
+    } else {
+        Some(1.0)
+    };
     let grid = view
         .beam_grid(light, scene.quality.beams_per_texel, !deposits, per_voxel)
         .shifted(req.jitter[1], req.jitter[2]);
