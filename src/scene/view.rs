@@ -32,9 +32,9 @@ pub const SWEEP_MARGIN_VOXELS: f32 = 1.0;
 pub const MAX_BEAMS_PER_PIXEL: f32 = 2.0;
 
 /// Refracted beams per voxel and axis at most (times `beams_per_texel`), where pixels are
-/// smaller than that. The CT head's full-effects render at 512² (2.5 plane-0 pixels per
+/// smaller than that. The CT head's full-effects render at 512² (2.1 plane-0 pixels per
 /// voxel) against one with twice the beams per texel at Δs = ¼: relative L1 0.0559 with a beam
-/// per pixel, 0.0567 at 1.9 and 0.0593 at 1.3 beams per voxel, in 17.2, 12.2 and 8.7 s.
+/// per pixel, 0.0567 at 1.6 and 0.0593 at 1.1 beams per voxel, in 17.2, 12.2 and 8.7 s.
 pub const REFRACTED_BEAMS_PER_VOXEL: f32 = 2.0;
 
 /// Pixels of the image whose rays can meet the volume: the projection of its box, a pixel
