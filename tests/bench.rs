@@ -150,7 +150,10 @@ fn tiny_light_bench_measures_the_planes_it_names() {
     let (voxels, gpu_rows) = report.rows.split_at(2);
     for r in voxels {
         assert_eq!(r.variant, light::VOXELS_LABEL);
-        assert!(r.rel_l1.is_finite() && r.ms_per_plane.is_nan(), "{r:?}");
+        assert!(
+            r.rel_l1.is_finite() && r.ms_per_plane.is_nan() && r.beams_per_texel.is_nan(),
+            "{r:?}"
+        );
         // Voxelising a 6-voxel ball moves its light, but not wholesale: same power in the frame.
         assert!((0.9..1.1).contains(&r.total_power_ratio), "{r:?}");
     }
@@ -161,6 +164,9 @@ fn tiny_light_bench_measures_the_planes_it_names() {
     }
     for r in gpu_rows {
         assert!(r.rel_l1.is_finite() && r.ms_per_plane > 0.0, "{r:?}");
+        // One-voxel texels, a beam per texel asked for: the cap of two per voxel does not
+        // bind, so one is traced (the grid's cells are whole pixels: exact).
+        assert!((r.beams_per_texel - 1.0).abs() < 1e-6, "{r:?}");
         // Both renderers see the light leave the ball: the frame holds about the same power.
         assert!((0.5..2.0).contains(&r.total_power_ratio), "{r:?}");
     }

@@ -198,6 +198,9 @@ pub struct LightRow {
     pub angular_gpu: f64,
     pub angular_exact: f64,
     pub ms_per_plane: f64,
+    /// Beams traced per texel and axis (the grid's cells, after the caps per voxel): what a
+    /// variant asks for may be capped.
+    pub beams_per_texel: f64,
 }
 
 /// The results and where they were written.
@@ -280,31 +283,39 @@ pub fn run(ctx: Arc<Context>, plan: &LightPlan, out: &Path) -> Result<LightRepor
     let ratio = |a: f64, b: f64| if b != 0.0 { a / b } else { f64::NAN };
     let r_texels = plan.radius / texel;
     let annulus = |img: &ScalarImage| measure::sector_variation(img, centre, 0.25 * r_texels, 0.75 * r_texels, 16);
-    let compare =
-        |label: &str, ds: f32, d: f64, k: u32, plane_r: f64, test: &ScalarImage, truth: &ScalarImage, ms: f64| {
-            let region = Region::square(truth, centre, 1.5 * r_texels);
-            LightRow {
-                variant: label.into(),
-                sample_distance: ds,
-                depth_r: d,
-                plane_r,
-                plane_index: k,
-                rel_l1: measure::relative_l1(test, truth, region).unwrap_or(f64::NAN),
-                gpu_max: measure::peak(test).value,
-                exact_max: measure::peak(truth).value,
-                power_inside_ratio: ratio(
-                    measure::power_inside(test, centre, r_texels),
-                    measure::power_inside(truth, centre, r_texels),
-                ),
-                total_power_ratio: ratio(
-                    measure::total(test, Region::all(test)),
-                    measure::total(truth, Region::all(truth)),
-                ),
-                angular_gpu: annulus(test),
-                angular_exact: annulus(truth),
-                ms_per_plane: ms,
-            }
-        };
+    let compare = |label: &str,
+                   ds: f32,
+                   d: f64,
+                   k: u32,
+                   plane_r: f64,
+                   test: &ScalarImage,
+                   truth: &ScalarImage,
+                   ms: f64,
+                   beams: f64| {
+        let region = Region::square(truth, centre, 1.5 * r_texels);
+        LightRow {
+            variant: label.into(),
+            sample_distance: ds,
+            depth_r: d,
+            plane_r,
+            plane_index: k,
+            rel_l1: measure::relative_l1(test, truth, region).unwrap_or(f64::NAN),
+            gpu_max: measure::peak(test).value,
+            exact_max: measure::peak(truth).value,
+            power_inside_ratio: ratio(
+                measure::power_inside(test, centre, r_texels),
+                measure::power_inside(truth, centre, r_texels),
+            ),
+            total_power_ratio: ratio(
+                measure::total(test, Region::all(test)),
+                measure::total(truth, Region::all(truth)),
+            ),
+            angular_gpu: annulus(test),
+            angular_exact: annulus(truth),
+            ms_per_plane: ms,
+            beams_per_texel: beams,
+        }
+    };
     picture.push(Vec::new());
     for (j, (i, &(ds, d, k, _, _, plane_r))) in planes.iter().enumerate().filter(|(_, p)| p.0 == first_ds).enumerate() {
         let test = voxels.planes[j].channel(1);
@@ -312,7 +323,17 @@ pub fn run(ctx: Arc<Context>, plan: &LightPlan, out: &Path) -> Result<LightRepor
         if let Some(row) = picture.last_mut() {
             row.push(test.clone());
         }
-        rows.push(compare(VOXELS_LABEL, ds, d, k, plane_r, &test, &truth, f64::NAN));
+        rows.push(compare(
+            VOXELS_LABEL,
+            ds,
+            d,
+            k,
+            plane_r,
+            &test,
+            &truth,
+            f64::NAN,
+            f64::NAN,
+        ));
     }
     for variant in &plan.variants {
         picture.push(Vec::new());
@@ -355,6 +376,7 @@ pub fn run(ctx: Arc<Context>, plan: &LightPlan, out: &Path) -> Result<LightRepor
                 &gpu,
                 &truth,
                 median(&mut times),
+                1.0 / frame.stats.light_cell_pixels.max(1e-6) as f64,
             ));
         }
     }
@@ -390,8 +412,10 @@ fn write_markdown(
          rows `{VOXELS_LABEL}` trace the voxelised ball the same way (trilinear index, ¼-voxel central \
          differences), the error of sampling the lens onto voxels alone. Relative L1 over [−1.5 R, 1.5 R]²; \
          power ratios GPU / exact; angular structure: largest deviation from the mean of the power in 16 \
-         sectors of the annulus R/4–3R/4 (rings cancel, a star does not). GPU ms per plane: median of {} \
-         renders.\n",
+         sectors of the annulus R/4–3R/4 (rings cancel, a star does not). Beams per texel: the light grid's \
+         cells per texel and axis as traced (refracted beams are capped at two per voxel and axis times the \
+         beams per texel asked for, so a row may trace fewer than its label asks). GPU ms per plane: median \
+         of {} renders.\n",
         renderer.context().info.name,
         plan.radius,
         plan.size,
@@ -415,13 +439,18 @@ fn write_markdown(
             .collect::<Vec<_>>()
             .join(", ")
     );
-    s.push_str("| transport | Δs | plane (R) | rel. L1 | brightest GPU | brightest exact | power r < R | total power | angular structure GPU / exact | ms per plane |\n");
-    s.push_str("|---|---|---|---|---|---|---|---|---|---|\n");
+    s.push_str("| transport | beams per texel | Δs | plane (R) | rel. L1 | brightest GPU | brightest exact | power r < R | total power | angular structure GPU / exact | ms per plane |\n");
+    s.push_str("|---|---|---|---|---|---|---|---|---|---|---|\n");
     for r in rows {
         let _ = writeln!(
             s,
-            "| {} | {} | {:.3} | {:.3} | {:.2} | {:.2} | {:.3} | {:.4} | {:.3} / {:.3} | {} |",
+            "| {} | {} | {} | {:.3} | {:.3} | {:.2} | {:.2} | {:.3} | {:.4} | {:.3} / {:.3} | {} |",
             r.variant,
+            if r.beams_per_texel.is_finite() {
+                format!("{:.2}²", r.beams_per_texel)
+            } else {
+                "—".into()
+            },
             r.sample_distance,
             r.plane_r,
             r.rel_l1,
@@ -474,12 +503,12 @@ fn write_picture(path: &Path, rows: &[Vec<ScalarImage>]) -> Result<(), String> {
 
 fn write_csv(path: &Path, rows: &[LightRow]) -> Result<(), String> {
     let mut s = String::from(
-        "transport,sample_distance,depth_r,plane_r,plane_index,rel_l1,gpu_max,exact_max,power_inside_ratio,total_power_ratio,angular_gpu,angular_exact,ms_per_plane\n",
+        "transport,sample_distance,depth_r,plane_r,plane_index,rel_l1,gpu_max,exact_max,power_inside_ratio,total_power_ratio,angular_gpu,angular_exact,ms_per_plane,beams_per_texel\n",
     );
     for r in rows {
         let _ = writeln!(
             s,
-            "\"{}\",{},{},{:.6},{},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.4}",
+            "\"{}\",{},{},{:.6},{},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{:.4},{:.4}",
             r.variant,
             r.sample_distance,
             r.depth_r,
@@ -492,7 +521,8 @@ fn write_csv(path: &Path, rows: &[LightRow]) -> Result<(), String> {
             r.total_power_ratio,
             r.angular_gpu,
             r.angular_exact,
-            r.ms_per_plane
+            r.ms_per_plane,
+            r.beams_per_texel
         );
     }
     std::fs::write(path, s).map_err(|e| e.to_string())

@@ -136,6 +136,9 @@ pub struct RenderStats {
     pub peak_memory: MemoryUse,
     /// Cells of the light grid (beams or backward lookups), width × height.
     pub light_grid: [u32; 2],
+    /// Width of a light-grid cell in plane-0 pixels (its inverse: the beams traced per pixel
+    /// and axis, after the caps per voxel and on the grid's size).
+    pub light_cell_pixels: f32,
     /// View passes of the sweep (one per plane, or fewer where each advances the rays over
     /// several: [`RenderRequest::view_planes`]).
     pub view_passes: u32,

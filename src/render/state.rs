@@ -807,6 +807,7 @@ pub(super) fn run(
                         / planes_run.max(1) as f64,
                     state_bytes: state.bytes,
                     light_grid: [layout.grid.width, layout.grid.height],
+                    light_cell_pixels: layout.grid.stride,
                     view_passes,
                     light_steps,
                     rect: [view.rect.width(), view.rect.height()],
