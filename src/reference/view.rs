@@ -11,7 +11,9 @@ use rayon::prelude::*;
 use super::medium::{Medium, SceneOptics, VolumeMedium};
 use super::photons::{self, DistantLight, LightGrid, PhotonSettings};
 use super::rk4::{self, Ray};
-use super::shading::{cook_torrance, fresnel_dielectric, interface_sides, FRESNEL_MIN_RELATIVE_STEP};
+use super::shading::{
+    cook_torrance, fresnel_dielectric, interface_sides, FRESNEL_MIN_RELATIVE_STEP, INTERFACE_SEARCH_VOXELS,
+};
 use crate::scene::{light_direction, EnvMap, PreparedScene, RenderedImage, ViewSetup};
 use crate::scene::{Environment, Projection};
 
@@ -136,6 +138,13 @@ struct Highlights {
     /// Propagation direction of the unrefracted light (world), where no photon arrived.
     source: DVec3,
 }
+
+/// Half-width (voxels) of the central differences that give a highlight's normal: over a
+/// voxel, as the GPU's gradient volume. Narrower differences follow the trilinear field's
+/// facets (its gradient turns at every voxel face), which widen a highlight's lobe: at a
+/// quarter voxel a coated glass sphere's highlight read 1.2–1.4 times the exact one's energy,
+/// at one voxel within 2.2 %.
+const NORMAL_HALF_WIDTH_VOXELS: f64 = 1.0;
 
 /// Gradients of the data value shorter than this (per world unit, relative to 1/voxel) give
 /// no surface normal, so no highlight (as the GPU's MIN_GRADIENT_LENGTH).
@@ -325,7 +334,7 @@ fn highlight(medium: &VolumeMedium, grid: &LightGrid, hl: &Highlights, a: DVec3,
         return none;
     }
     let p = a.lerp(b, 0.5);
-    let g = medium.value_gradient(p);
+    let g = medium.value_gradient_over(p, NORMAL_HALF_WIDTH_VOXELS);
     if g.length() * medium.voxel_length() <= MIN_GRADIENT_PER_VOXEL {
         return none;
     }
@@ -340,7 +349,14 @@ fn highlight(medium: &VolumeMedium, grid: &LightGrid, hl: &Highlights, a: DVec3,
         return none;
     }
     let weight = (crossed / step).min(1.0);
-    let l = -grid.direction(p).unwrap_or(hl.source);
+    // The view ray and the light as they travel in front of the interface: the piece may lie
+    // inside the index ramp, where the ray has bent part way and the photons there mix light
+    // already refracted by it. The ray's direction is carried back across the interface by
+    // Snell's law (its component along the interface kept); the light's is the photons' mean
+    // beyond the ramp on the viewer's side.
+    let v = -in_medium((b - a).normalize() * medium.eta(p), n, eta_view);
+    let front = p + n * (INTERFACE_SEARCH_VOXELS * medium.voxel_length());
+    let l = -grid.direction(front).unwrap_or(hl.source);
     let f = fresnel_dielectric(n.dot(v), eta_view, eta_far);
     let s = hl.scale * f * cook_torrance(n, l, v, hl.roughness) * weight;
     if s == 0.0 {
@@ -348,6 +364,17 @@ fn highlight(medium: &VolumeMedium, grid: &LightGrid, hl: &Highlights, a: DVec3,
     }
     let light = grid.sample(p);
     [0, 1, 2].map(|c| s * light[c])
+}
+
+/// The unit direction that `w` = η·d (η where it was taken) has in the index `eta` across an
+/// interface with unit normal `n`: the component along the interface kept (Snell), the normal
+/// one the rest of |w| = eta, on the same side (only the tangential part under total internal
+/// reflection).
+fn in_medium(w: DVec3, n: DVec3, eta: f64) -> DVec3 {
+    let wn = w.dot(n);
+    let t = w - wn * n;
+    let normal = (eta * eta - t.length_squared()).max(0.0).sqrt();
+    (t + if wn < 0.0 { -normal } else { normal } * n).normalize_or_zero()
 }
 
 /// Oddy–Willis compositing (Eq. 14) of the straight piece from `a` to `b` (length `len`),
