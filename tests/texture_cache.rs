@@ -64,3 +64,28 @@ fn a_render_cancelled_before_its_upload_does_not_poison_the_cache() {
     assert_eq!(after, fresh(&p));
     gpu.assert_clean();
 }
+
+#[test]
+fn sample_distances_changing_back_and_forth_keep_the_images_of_fresh_uploads() {
+    // The viewer's levels step the planes 4, 2 and 1 times the scene's distance, and a drag
+    // goes back to 4: only the pre-integrated tables are replaced, and each image must be the
+    // fresh renderer's. A render cancelled after the tables were replaced but before they
+    // were uploaded must not leave them empty either.
+    let mut gpu = Gpu::new();
+    let req = RenderRequest::new(48, 40);
+    let mut p = prepared();
+    let base = p.scene.quality.sample_distance;
+    for factor in [4.0, 2.0, 1.0, 4.0] {
+        p.scene.quality.sample_distance = base * factor;
+        assert_eq!(gpu.render(&p, &req).image.pixels, fresh(&p), "Δs × {factor}");
+    }
+    p.scene.quality.sample_distance = base * 2.0;
+    let mut cancelled = RenderRequest::new(48, 40);
+    cancelled.cancel = Some(Arc::new(AtomicBool::new(true)));
+    assert!(matches!(
+        gpu.renderer.render(&p, &cancelled),
+        Err(RenderError::Cancelled)
+    ));
+    assert_eq!(gpu.render(&p, &req).image.pixels, fresh(&p), "after a cancelled render");
+    gpu.assert_clean();
+}

@@ -51,6 +51,17 @@ struct Staging {
 }
 
 impl Staging {
+    fn into_buffer(self, ctx: &Arc<Context>) -> Result<Buffer, GpuError> {
+        let mut buffer = Buffer::new_upload(
+            ctx,
+            "scene staging",
+            self.bytes.len() as u64,
+            ash::vk::BufferUsageFlags::TRANSFER_SRC,
+        )?;
+        buffer.write(&self.bytes)?;
+        Ok(buffer)
+    }
+
     fn push(&mut self, data: &[u8]) -> u64 {
         while self.bytes.len() % 16 != 0 {
             self.bytes.push(0);
@@ -59,6 +70,31 @@ impl Staging {
         self.bytes.extend_from_slice(data);
         offset
     }
+}
+
+/// Where the particle and medium tables are in [`SceneTextures::images`].
+const TABLE_IMAGES: [usize; 2] = [2, 3];
+
+/// The pre-integrated particle and medium tables for `sample_distance`, created and staged:
+/// (image, staging offset) each.
+fn tables(
+    ctx: &Arc<Context>,
+    tf: &TransferFunctions,
+    sample_distance: f32,
+    staging: &mut Staging,
+) -> Result<Vec<(Image, u64)>, GpuError> {
+    let tables = preintegrate(tf, sample_distance);
+    let n = TABLE_SIZE as u32;
+    [("particle table", &tables.particle), ("medium table", &tables.medium)]
+        .into_iter()
+        .map(|(label, data)| {
+            let img = Image::new(
+                ctx,
+                ImageDesc::sampled(label, Format::R16G16B16A16_SFLOAT, [n, n, 1], false, 1),
+            )?;
+            Ok((img, staging.push(&halves(data.iter().flatten().copied()))))
+        })
+        .collect()
 }
 
 /// 16-bit floats for the tables and the environment map, saturated at the largest finite
@@ -131,15 +167,8 @@ impl SceneTextures {
         ));
         images.push(img);
 
-        let tables = preintegrate(tf, sample_distance);
-        let n = TABLE_SIZE as u32;
-        for (label, data) in [("particle table", &tables.particle), ("medium table", &tables.medium)] {
-            let img = Image::new(
-                ctx,
-                ImageDesc::sampled(label, Format::R16G16B16A16_SFLOAT, [n, n, 1], false, 1),
-            )?;
-            let offset = staging.push(&halves(data.iter().flatten().copied()));
-            uploads.push((images.len(), vec![(offset, [n, n, 1])]));
+        for (img, offset) in tables(ctx, tf, sample_distance, &mut staging)? {
+            uploads.push((images.len(), vec![(offset, img.desc.extent)]));
             images.push(img);
         }
 
@@ -169,13 +198,7 @@ impl SceneTextures {
         uploads.push((images.len(), levels));
         images.push(img);
 
-        let mut buffer = Buffer::new_upload(
-            ctx,
-            "scene staging",
-            staging.bytes.len() as u64,
-            ash::vk::BufferUsageFlags::TRANSFER_SRC,
-        )?;
-        buffer.write(&staging.bytes)?;
+        let buffer = staging.into_buffer(ctx)?;
 
         use ash::vk::SamplerAddressMode as A;
         let linear_clamp = Sampler::new(
@@ -234,12 +257,39 @@ impl SceneTextures {
         Ok((textures, pending))
     }
 
+    /// Replaces the pre-integrated tables with those for another sample distance (the
+    /// viewer's levels step the planes differently) and stages their contents; the volume, the
+    /// gradient volume and the environment stay.
+    fn replace_tables(
+        &mut self,
+        ctx: &Arc<Context>,
+        tf: &TransferFunctions,
+        sample_distance: f32,
+    ) -> Result<PendingUpload, GpuError> {
+        let mut staging = Staging::default();
+        let mut new = tables(ctx, tf, sample_distance, &mut staging)?.into_iter();
+        let (Some((particle, p)), Some((medium, m))) = (new.next(), new.next()) else {
+            return Err(missing());
+        };
+        self.particle_table = particle;
+        self.medium_table = medium;
+        let uploads = vec![
+            (TABLE_IMAGES[0], vec![(p, self.particle_table.desc.extent)]),
+            (TABLE_IMAGES[1], vec![(m, self.medium_table.desc.extent)]),
+        ];
+        Ok(PendingUpload {
+            staging: Arc::new(staging.into_buffer(ctx)?),
+            uploads,
+        })
+    }
+
     /// Bytes of device memory the textures and the brick flags hold.
     pub fn bytes(&self) -> u64 {
         self.images().iter().map(|i| i.bytes()).sum::<u64>() + self.bricks.bytes()
     }
 
-    /// The images in the order [`PendingUpload`] indexes them (the order of creation).
+    /// The images in the order [`PendingUpload`] indexes them (the order of creation; the
+    /// tables at [`TABLE_IMAGES`]).
     fn images(&self) -> Vec<&Image> {
         vec![
             &self.volume,
@@ -251,10 +301,16 @@ impl SceneTextures {
     }
 
     /// Records the copy of the staged contents into the textures. The recorder keeps the
-    /// staging memory until the copy has executed, then it goes.
+    /// staging memory until the copy has executed, then it goes. Only the images staged are
+    /// touched: the others keep their contents.
     pub fn record_upload<'r>(&'r self, rec: &mut Recorder<'r>, pending: PendingUpload) {
         let images = self.images();
-        rec.init_layout(&images);
+        let staged: Vec<&Image> = pending
+            .uploads
+            .iter()
+            .filter_map(|(index, _)| images.get(*index).copied())
+            .collect();
+        rec.init_layout(&staged);
         for (index, levels) in &pending.uploads {
             if let Some(image) = images.get(*index) {
                 rec.upload(&pending.staging, image, levels);
@@ -291,6 +347,11 @@ impl TexturesKey {
     }
 
     fn same(&self, other: &TexturesKey) -> bool {
+        self.same_but_step(other) && self.sample_distance == other.sample_distance
+    }
+
+    /// The same but for the sample distance, on which only the pre-integrated tables depend.
+    fn same_but_step(&self, other: &TexturesKey) -> bool {
         let eta_same = match (&self.eta_volume, &other.eta_volume) {
             (Some(a), Some(b)) => Arc::ptr_eq(a, b),
             (None, None) => true,
@@ -301,7 +362,6 @@ impl TexturesKey {
             && self.gradient == other.gradient
             && self.window == other.window
             && self.tf == other.tf
-            && self.sample_distance == other.sample_distance
             && self.environment == other.environment
     }
 }
@@ -327,6 +387,26 @@ impl CachedTextures {
 
     pub fn matches(&self, key: &TexturesKey) -> bool {
         self.uploaded.get() && self.key.same(key)
+    }
+
+    /// Whether the textures differ from `key`'s only in the pre-integrated tables (another
+    /// sample distance): [`CachedTextures::replace_tables`] brings them up to date.
+    pub fn matches_but_tables(&self, key: &TexturesKey) -> bool {
+        self.uploaded.get() && self.key.same_but_step(key)
+    }
+
+    /// New tables for `key`'s sample distance (the rest is kept); until the returned upload
+    /// has executed ([`CachedTextures::uploaded`]) nothing matches.
+    pub fn replace_tables(
+        &mut self,
+        ctx: &Arc<Context>,
+        tf: &TransferFunctions,
+        key: TexturesKey,
+    ) -> Result<PendingUpload, GpuError> {
+        self.uploaded.set(false);
+        let pending = self.textures.replace_tables(ctx, tf, key.sample_distance)?;
+        self.key = key;
+        Ok(pending)
     }
 
     /// Called after a submission that contained the upload has completed.
