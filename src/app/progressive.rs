@@ -22,13 +22,22 @@ pub struct Level {
 }
 
 /// Coarse to fine; the last is the full-quality frame.
-pub const LEVELS: [Level; 3] = [
+pub const LEVELS: [Level; 4] = [
     Level {
         name: "interactive",
         // 128×96 at a 1024×768 viewport: 0.2–0.3 s per frame on the CT head with every effect
         // on lavapipe with 2 cores. Half the beams per texel: at this size the light grid
         // (which covers more than the image) is about half the frame's time.
         scale: 0.125,
+        step_factor: 4.0,
+        beams_factor: 0.5,
+    },
+    Level {
+        name: "draft",
+        // The interactive level's planes and light grid at twice its resolution: a sharper
+        // image within about a second of letting go, while the preview takes several on
+        // real CT (the CT head's at 322×384: 5.3 s on lavapipe).
+        scale: 0.25,
         step_factor: 4.0,
         beams_factor: 0.5,
     },
@@ -231,9 +240,9 @@ mod tests {
             assert!(p.finished(job, true));
         }
         let passes: Vec<u32> = (1..ACCUMULATE).collect();
-        assert_eq!(seen[..3], [0, 1, 2]);
-        assert!(seen[3..].iter().all(|&l| l == FULL), "{seen:?}");
-        assert_eq!(seen.len(), 2 + ACCUMULATE as usize, "{seen:?} (passes {passes:?})");
+        assert_eq!(seen[..=FULL], [0, 1, 2, 3]);
+        assert!(seen[FULL..].iter().all(|&l| l == FULL), "{seen:?}");
+        assert_eq!(seen.len(), FULL + ACCUMULATE as usize, "{seen:?} (passes {passes:?})");
         assert!(p.settled() && p.accumulated());
         assert_eq!(p.wake_at(), None, "nothing left to do");
     }
@@ -242,7 +251,7 @@ mod tests {
     fn accumulation_passes_follow_the_full_frame_and_an_edit_cancels_them() {
         let t0 = Instant::now();
         let mut p = Progressive::new(t0);
-        for _ in 0..3 {
+        for _ in 0..=FULL {
             let j = p.next(t0).unwrap();
             assert_eq!(j.pass, 0);
             p.finished(j, true);
@@ -293,6 +302,14 @@ mod tests {
     #[test]
     fn level_sizes() {
         assert_eq!(LEVELS[0].size(1024, 768), (128, 96));
+        assert_eq!(LEVELS[1].size(1024, 768), (256, 192));
+        // Each level is at least as fine as the one before.
+        for w in LEVELS.windows(2) {
+            assert!(
+                w[1].scale >= w[0].scale && w[1].step_factor <= w[0].step_factor,
+                "{w:?}"
+            );
+        }
         assert_eq!(LEVELS[FULL].size(1024, 768), (1024, 768));
         assert_eq!(LEVELS[0].size(2, 2), (1, 1));
         assert_eq!(LEVELS[FULL].step_factor, 1.0);
