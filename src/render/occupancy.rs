@@ -90,44 +90,38 @@ impl Occupancy {
         self.flags[(c[2] * self.cells[1] + c[1]) * self.cells[0] + c[0]]
     }
 
+    /// Cells of the grid per texture unit along each axis.
+    fn per_unit(&self) -> [f32; 3] {
+        [0, 1, 2].map(|a| self.voxels[a] as f32 / self.edge as f32)
+    }
+
+    /// The cells by which [`Occupancy::grown`] grows the occupied ones for `margin`: what the
+    /// grown grid depends on.
+    pub fn growth(&self, margin: [f32; 3]) -> [usize; 3] {
+        let per_unit = self.per_unit();
+        [0, 1, 2].map(|a| (margin[a] * per_unit[a]).max(0.0).ceil() as usize)
+    }
+
     /// The grid with every occupied cell grown by `margin` (texture units along each axis,
     /// the volume's box being [0, 1]³), for [`Grown::span`].
     pub fn grown(&self, margin: [f32; 3]) -> Grown {
-        // Cells of grid per texture unit along each axis.
-        let per_unit = [0, 1, 2].map(|a| self.voxels[a] as f32 / self.edge as f32);
-        let d = [0, 1, 2].map(|a| (margin[a] * per_unit[a]).max(0.0).ceil() as usize);
+        let per_unit = self.per_unit();
+        let d = self.growth(margin);
         let size = [0, 1, 2].map(|a| self.cells[a] + 2 * d[a]);
-        // Separable: grow along x, then y, then z (a box of (2d+1)³ cells about each).
+        // Separable: grow along x, then y, then z (a box of (2d+1)³ cells about each), each
+        // line in one pass either way whatever the margin (the interactive level's coarse
+        // planes and beams grow the cells by several).
         let mut flags = vec![false; size[0] * size[1] * size[2]];
         let index = |c: [usize; 3]| (c[2] * size[1] + c[1]) * size[0] + c[0];
         for z in 0..self.cells[2] {
             for y in 0..self.cells[1] {
                 for x in 0..self.cells[0] {
-                    if self.at([x, y, z]) {
-                        for gx in x..=x + 2 * d[0] {
-                            flags[index([gx, y + d[1], z + d[2]])] = true;
-                        }
-                    }
+                    flags[index([x + d[0], y + d[1], z + d[2]])] = self.at([x, y, z]);
                 }
             }
         }
-        for axis in [1, 2] {
-            let mut next = flags.clone();
-            for z in 0..size[2] {
-                for y in 0..size[1] {
-                    for x in 0..size[0] {
-                        let c = [x, y, z];
-                        if flags[index(c)] {
-                            let mut g = c;
-                            for k in c[axis].saturating_sub(d[axis])..(c[axis] + d[axis] + 1).min(size[axis]) {
-                                g[axis] = k;
-                                next[index(g)] = true;
-                            }
-                        }
-                    }
-                }
-            }
-            flags = next;
+        for (axis, &by) in d.iter().enumerate() {
+            flags = dilate(&flags, size, axis, by);
         }
         Grown {
             flags,
@@ -136,6 +130,39 @@ impl Occupancy {
             per_unit,
         }
     }
+}
+
+/// `flags` (a grid of `size` cells, x fastest) with every set cell grown by `d` cells both
+/// ways along `axis`: per line, the distance to the last set cell forward and to the next
+/// backward.
+fn dilate(flags: &[bool], size: [usize; 3], axis: usize, d: usize) -> Vec<bool> {
+    if d == 0 {
+        return flags.to_vec();
+    }
+    let stride = [1, size[0], size[0] * size[1]][axis];
+    let n = size[axis];
+    let mut out = vec![false; flags.len()];
+    for start in (0..flags.len()).filter(|&i| (i / stride) % n == 0) {
+        let mut last = None;
+        for i in 0..n {
+            if flags[start + i * stride] {
+                last = Some(i);
+            }
+            if last.is_some_and(|l| i - l <= d) {
+                out[start + i * stride] = true;
+            }
+        }
+        let mut next = None;
+        for i in (0..n).rev() {
+            if flags[start + i * stride] {
+                next = Some(i);
+            }
+            if next.is_some_and(|m| m - i <= d) {
+                out[start + i * stride] = true;
+            }
+        }
+    }
+    out
 }
 
 /// An [`Occupancy`] grown by a margin, padded by the growth on every side.
@@ -274,6 +301,48 @@ impl Grown {
 mod tests {
     use super::*;
     use glam::Vec3;
+
+    /// Growing is a box of (2d+1) cells per axis about every occupied cell: against a brute
+    /// force over a scattered grid, margins of 0 to several cells, different per axis.
+    #[test]
+    fn growing_matches_a_box_about_every_occupied_cell() {
+        let cells = [7, 5, 6];
+        let flags: Vec<bool> = (0..cells[0] * cells[1] * cells[2])
+            .map(|i| (i * 37 + i / 5) % 11 == 0)
+            .collect();
+        let occ = Occupancy {
+            flags: flags.clone(),
+            cells,
+            voxels: [28, 20, 24],
+            edge: 4,
+        };
+        for d in [[0usize, 0, 0], [1, 0, 2], [3, 2, 1], [6, 5, 4]] {
+            // Margins in texture units that give exactly d cells.
+            let margin = [0, 1, 2].map(|a| d[a] as f32 / cells[a] as f32);
+            let g = occ.grown(margin);
+            assert_eq!(g.offset, d);
+            for z in 0..g.size[2] {
+                for y in 0..g.size[1] {
+                    for x in 0..g.size[0] {
+                        let c = [x, y, z];
+                        let expected = (0..cells[2]).any(|cz| {
+                            (0..cells[1]).any(|cy| {
+                                (0..cells[0]).any(|cx| {
+                                    flags[(cz * cells[1] + cy) * cells[0] + cx]
+                                        && [cx, cy, cz]
+                                            .iter()
+                                            .enumerate()
+                                            .all(|(a, &o)| (o + d[a]).abs_diff(c[a]) <= d[a])
+                                })
+                            })
+                        });
+                        let got = g.flags[(z * g.size[1] + y) * g.size[0] + x];
+                        assert_eq!(got, expected, "cell {c:?}, margin {d:?}");
+                    }
+                }
+            }
+        }
+    }
 
     /// One occupied cell in an 8³-cell grid: the span of lines through, beside and past it,
     /// against the cell's box grown by the margin.

@@ -530,12 +530,7 @@ pub(super) fn run(
         let scale = light_tiles::texture_scale(&view);
         // The occupied cells grown by what a view sample reads and a straight beam's deposit
         // reach (`straight`).
-        let grown: Vec<_> = cached
-            .textures
-            .occupancy
-            .iter()
-            .map(|o| o.grown(scale.map(|s| s * straight)))
-            .collect();
+        let grown = cached.grown(scale.map(|s| s * straight));
         let mut spans = light_tiles::spans(&view, &grid, light, &grown);
         if features.refraction {
             // Bent beams end where the device finds they can no longer reach the box

@@ -1,6 +1,6 @@
 //! Scene data on the GPU: volume textures, pre-integrated tables, η table, environment map.
 
-use std::cell::Cell;
+use std::cell::{Cell, RefCell};
 use std::sync::Arc;
 
 use half::f16;
@@ -12,7 +12,7 @@ use crate::volume::Volume;
 
 use super::environment::EnvMap;
 use super::gradient::gradient_volume;
-use super::occupancy::Occupancy;
+use super::occupancy::{Grown, Occupancy};
 
 type Levels = Vec<(u64, [u32; 3])>;
 
@@ -366,6 +366,9 @@ impl TexturesKey {
     }
 }
 
+/// Occupied cells grown, with the growth in cells of each grid.
+type KeptGrowth = (Vec<[usize; 3]>, Arc<Vec<Grown>>);
+
 /// Scene textures kept by the renderer between renders.
 pub struct CachedTextures {
     key: TexturesKey,
@@ -374,6 +377,8 @@ pub struct CachedTextures {
     /// its first submission) the textures hold nothing and must not be reused. A `Cell`, so
     /// it can be set while the render's descriptor sets borrow the textures.
     uploaded: Cell<bool>,
+    /// The occupied cells last grown ([`CachedTextures::grown`]) and by how many cells each.
+    grown: RefCell<Option<KeptGrowth>>,
 }
 
 impl CachedTextures {
@@ -382,6 +387,7 @@ impl CachedTextures {
             key,
             textures,
             uploaded: Cell::new(false),
+            grown: RefCell::new(None),
         }
     }
 
@@ -407,6 +413,28 @@ impl CachedTextures {
         let pending = self.textures.replace_tables(ctx, tf, key.sample_distance)?;
         self.key = key;
         Ok(pending)
+    }
+
+    /// The textures' occupied cells grown by `margin` (`Occupancy::grown`), kept while the
+    /// growth in cells stays the same: successive frames of a drag mostly ask for the same,
+    /// and at the interactive level's coarse planes and beams growing took tens of ms.
+    pub fn grown(&self, margin: [f32; 3]) -> Arc<Vec<Grown>> {
+        let key: Vec<[usize; 3]> = self.textures.occupancy.iter().map(|o| o.growth(margin)).collect();
+        let mut kept = self.grown.borrow_mut();
+        if let Some((k, g)) = kept.as_ref() {
+            if *k == key {
+                return g.clone();
+            }
+        }
+        let g = Arc::new(
+            self.textures
+                .occupancy
+                .iter()
+                .map(|o| o.grown(margin))
+                .collect::<Vec<_>>(),
+        );
+        *kept = Some((key, g.clone()));
+        g
     }
 
     /// Called after a submission that contained the upload has completed.
