@@ -252,15 +252,10 @@ impl VolumeMedium {
         self.grid.value(self.box_coords(p))
     }
 
-    /// Gradient of the value (per world unit) by central differences ±¼ voxel: the surface
-    /// normal of the data, which highlights use (as the GPU's, from the volume, not η).
-    pub fn value_gradient(&self, p: DVec3) -> DVec3 {
-        self.value_gradient_over(p, GRADIENT_HALF_WIDTH_VOXELS)
-    }
-
-    /// The gradient of the data value by central differences `half_width_voxels` voxels
-    /// either side along each axis.
-    pub fn value_gradient_over(&self, p: DVec3, half_width_voxels: f64) -> DVec3 {
+    /// Gradient of the value (per world unit) by central differences `half_width_voxels`
+    /// voxels either side along each axis: the surface normal of the data, which highlights
+    /// use (as the GPU's, from the volume, not η).
+    pub fn value_gradient(&self, p: DVec3, half_width_voxels: f64) -> DVec3 {
         let h = self.grid.spacing * half_width_voxels;
         let d = |axis: DVec3, h: f64| (self.value(p + axis * h) - self.value(p - axis * h)) / (2.0 * h);
         DVec3::new(d(DVec3::X, h.x), d(DVec3::Y, h.y), d(DVec3::Z, h.z))

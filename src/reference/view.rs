@@ -334,7 +334,7 @@ fn highlight(medium: &VolumeMedium, grid: &LightGrid, hl: &Highlights, a: DVec3,
         return none;
     }
     let p = a.lerp(b, 0.5);
-    let g = medium.value_gradient_over(p, NORMAL_HALF_WIDTH_VOXELS);
+    let g = medium.value_gradient(p, NORMAL_HALF_WIDTH_VOXELS);
     if g.length() * medium.voxel_length() <= MIN_GRADIENT_PER_VOXEL {
         return none;
     }

@@ -492,29 +492,30 @@ pub(super) fn run(
     // interactive view changes mostly the camera and light).
     let key = TexturesKey::new(prepared, &features);
     let mut pending = None;
-    if let Some(c) = cache
-        .as_mut()
-        .filter(|c| !c.matches(&key) && c.matches_but_tables(&key))
-    {
-        // Another sample distance only (the viewer's levels): new tables, the rest kept.
-        pending = Some(c.replace_tables(ctx, &prepared.tf, key)?);
-    } else if !cache.as_ref().is_some_and(|c| c.matches(&key)) {
-        *cache = None; // free the old textures before allocating new ones
-        let eta_source = match (&prepared.eta_volume, features.eta_volume) {
-            (Some(v), true) => Some((v.as_ref(), v.value_range)),
-            _ => None,
-        };
-        let (textures, upload) = SceneTextures::upload(
-            ctx,
-            vol,
-            window,
-            features.refraction.then_some((eta_source, features.gradient)),
-            &prepared.tf,
-            scene.quality.sample_distance,
-            prepared.env.as_ref(),
-        )?;
-        *cache = Some(CachedTextures::new(key, textures));
-        pending = Some(upload);
+    match cache.as_mut() {
+        Some(c) if c.matches(&key) => {}
+        Some(c) if c.matches_but_tables(&key) => {
+            // Another sample distance only (the viewer's levels): new tables, the rest kept.
+            pending = Some(c.replace_tables(ctx, &prepared.tf, key)?);
+        }
+        _ => {
+            *cache = None; // free the old textures before allocating new ones
+            let eta_source = match (&prepared.eta_volume, features.eta_volume) {
+                (Some(v), true) => Some((v.as_ref(), v.value_range)),
+                _ => None,
+            };
+            let (textures, upload) = SceneTextures::upload(
+                ctx,
+                vol,
+                window,
+                features.refraction.then_some((eta_source, features.gradient)),
+                &prepared.tf,
+                scene.quality.sample_distance,
+                prepared.env.as_ref(),
+            )?;
+            *cache = Some(CachedTextures::new(key, textures));
+            pending = Some(upload);
+        }
     }
     let cached = cache
         .as_ref()

@@ -76,25 +76,26 @@ impl Staging {
 const TABLE_IMAGES: [usize; 2] = [2, 3];
 
 /// The pre-integrated particle and medium tables for `sample_distance`, created and staged:
-/// (image, staging offset) each.
+/// (image, staging offset) each, in that order.
 fn tables(
     ctx: &Arc<Context>,
     tf: &TransferFunctions,
     sample_distance: f32,
     staging: &mut Staging,
-) -> Result<Vec<(Image, u64)>, GpuError> {
+) -> Result<[(Image, u64); 2], GpuError> {
     let tables = preintegrate(tf, sample_distance);
     let n = TABLE_SIZE as u32;
-    [("particle table", &tables.particle), ("medium table", &tables.medium)]
-        .into_iter()
-        .map(|(label, data)| {
-            let img = Image::new(
-                ctx,
-                ImageDesc::sampled(label, Format::R16G16B16A16_SFLOAT, [n, n, 1], false, 1),
-            )?;
-            Ok((img, staging.push(&halves(data.iter().flatten().copied()))))
-        })
-        .collect()
+    let mut table = |label: &str, data: &[[f32; 4]]| -> Result<(Image, u64), GpuError> {
+        let img = Image::new(
+            ctx,
+            ImageDesc::sampled(label, Format::R16G16B16A16_SFLOAT, [n, n, 1], false, 1),
+        )?;
+        Ok((img, staging.push(&halves(data.iter().flatten().copied()))))
+    };
+    Ok([
+        table("particle table", &tables.particle)?,
+        table("medium table", &tables.medium)?,
+    ])
 }
 
 /// 16-bit floats for the tables and the environment map, saturated at the largest finite
@@ -267,10 +268,7 @@ impl SceneTextures {
         sample_distance: f32,
     ) -> Result<PendingUpload, GpuError> {
         let mut staging = Staging::default();
-        let mut new = tables(ctx, tf, sample_distance, &mut staging)?.into_iter();
-        let (Some((particle, p)), Some((medium, m))) = (new.next(), new.next()) else {
-            return Err(missing());
-        };
+        let [(particle, p), (medium, m)] = tables(ctx, tf, sample_distance, &mut staging)?;
         self.particle_table = particle;
         self.medium_table = medium;
         let uploads = vec![
