@@ -194,6 +194,13 @@ fn dark_tiles_end() -> bool {
     return BEAMS && !REFRACTION && !LIGHT_FILTER && !SCATTER && !LBM;
 }
 
+// Whether a light tile whose light no view ray still alive can read (`light_tile_unseen`) can
+// stop being stepped: where beams keep their cells (nothing bends them) and carry only the
+// unscattered light.
+fn unseen_tiles_end() -> bool {
+    return BEAMS && !REFRACTION && !SCATTER && !LBM;
+}
+
 // Lists light tile t for plane k (>= 1) if its beams are to be stepped there: from the plane
 // its beams or a neighbouring tile's may come within the margin of a cell where the light
 // can change (`light_start`), until neither it nor a neighbour has a beam left that can come
@@ -216,6 +223,12 @@ fn list_light_tile(t: u32, k: u32) {
     // (`front_power_region`) and on the last two (the power on the plane).
     let held = max(P.sweep.x, 2u);
     if (dark_tiles_end() && k > start + held && atomicLoad(&light_lit[t]) + held < k) {
+        atomicStore(&light_end[t], k);
+        return;
+    }
+    // Unseen for good: no view ray left alive can read its light on this plane or a later one
+    // (from plane 2 on: plane 1's tiles are listed while the view rays are being counted).
+    if (unseen_tiles_end() && (P.culling.w & 2u) != 0u && k >= 2u && light_tile_unseen(t, k)) {
         atomicStore(&light_end[t], k);
         return;
     }
@@ -250,6 +263,89 @@ fn list_light_tile(t: u32, k: u32) {
     let list = (k % 2u) * 2u + select(1u, 0u, current || k == 1u);
     let slot = atomicAdd(&light_args[list * 3u], 1u);
     light_lists[list * n + slot] = t;
+}
+
+// Whether no view ray still alive can use the light of light tile t on plane k or a later
+// one, where beams keep their cells (`unseen_tiles_end`). A view sample at pixel px on plane
+// k' reads the power of the cells around its own light line (`beams_unscattered_through`: a
+// lookup back along the light lands on the same cells), bilinearly: those of the tile and
+// the one beyond them on each side. Carried along the light from plane k to the last, those
+// cells cover a strip of the image and a prism of the volume, taken in pieces of about a
+// view tile's drift on the image: a piece is seen where a view tile with a ray alive meets
+// its box on the image and a brick that absorbs or shows meets its box in the volume (one
+// plane longer at each end: the view segments on either side of a plane use its light).
+// Rays only end (nothing bends them), so a tile once unseen stays unseen; a ray that ended on
+// a plane whose view pass has not run yet still counts.
+fn light_tile_unseen(t: u32, k: u32) -> bool {
+    let tx = P.beam_grid.z;
+    let c0 = vec2<f32>(vec2<u32>(t % tx, t / tx) * TILE);
+    let s = P.beam_origin.z;
+    // With the soft light a beam also reads its neighbours' light: the tile ends only where
+    // the tiles around it are unseen too, so that what an ended tile's frozen light passes
+    // on reaches seen light only across a whole tile of beams stepped on.
+    var around = 1.0;
+    if (LIGHT_FILTER) {
+        around += f32(TILE);
+    }
+    // Plane-0 pixel coordinates (as `grid_point`) of the centres of cells c0 − around and
+    // c0 + TILE − 1 + around.
+    let lo = P.beam_origin.xy + (c0 - vec2<f32>(around - 0.5)) * s - vec2<f32>(0.5);
+    let hi = P.beam_origin.xy + (c0 + vec2<f32>(f32(TILE) + around - 0.5)) * s - vec2<f32>(0.5);
+    let last = u32(P.plane.z) - 1u;
+    let za = plane_z(min(k, last));
+    let zb = plane_z(last);
+    let z0 = P.plane.x;
+    let mid = unproject(0.5 * (lo + hi), z0);
+    let drift = length(project(unrefracted(mid, zb)) - project(unrefracted(mid, za)));
+    let pieces = clamp(u32(ceil(drift / f32(TILE))), 1u, 64u);
+    let dims = vec3<f32>(1.0) / P.texel.xyz;
+    for (var i = 0u; i < pieces; i++) {
+        let z1 = mix(za, zb, f32(i) / f32(pieces));
+        let z2 = mix(za, zb, f32(i + 1u) / f32(pieces));
+        var bmin = vec2<f32>(3.4e38);
+        var bmax = vec2<f32>(-3.4e38);
+        var vmin = vec3<f32>(3.4e38);
+        var vmax = vec3<f32>(-3.4e38);
+        for (var c = 0u; c < 8u; c++) {
+            let corner = vec2<f32>(select(lo.x, hi.x, (c & 1u) == 1u), select(lo.y, hi.y, (c & 2u) == 2u));
+            let p0 = unproject(corner, z0);
+            let q = project(unrefracted(p0, select(z1, z2, (c & 4u) == 4u)));
+            bmin = min(bmin, q);
+            bmax = max(bmax, q);
+            // The particles that use this light: the view segments on either side of the
+            // planes, one plane further each way.
+            let v = volume_coord(unrefracted(p0, select(z1 - P.plane.y, z2 + P.plane.y, (c & 4u) == 4u))) * dims;
+            vmin = min(vmin, v);
+            vmax = max(vmax, v);
+        }
+        // A pixel of slack for rounding. Light where nothing absorbs or shows is used by no
+        // view ray, however many are alive there (rays in the empty space around the volume).
+        if (view_rays_within(bmin - vec2<f32>(1.0), bmax + vec2<f32>(1.0)) && bricks_visible(vmin, vmax)) {
+            return false;
+        }
+    }
+    return true;
+}
+
+// Whether a view tile with a ray alive holds a pixel (centres at integers) within [lo, hi].
+fn view_rays_within(lo: vec2<f32>, hi: vec2<f32>) -> bool {
+    let r0 = vec2<f32>(P.rect.xy);
+    let r1 = vec2<f32>(P.rect.zw) - vec2<f32>(1.0);
+    let a = max(ceil(lo), r0);
+    let b = min(floor(hi), r1);
+    if (any(a > b)) {
+        return false;
+    }
+    let t0 = (vec2<u32>(a) - P.rect.xy) / TILE;
+    let t1 = (vec2<u32>(b) - P.rect.xy) / TILE;
+    for (var y = t0.y; y <= t1.y; y++) {
+        for (var x = t0.x; x <= t1.x; x++) {
+            if ((atomicLoad(&view_tiles[y * P.tiles.x + x]) & ~VIEW_TILE_BENT) != 0u) {
+                return true;
+            }
+        }
+    }
+    return false;
 }
 
 // Whether a beam at p travelling along d (unit) is within the margin of the volume's box, plus

@@ -519,6 +519,13 @@ fn slab_visible(lo: vec2<f32>, hi: vec2<f32>, za: f32, zb: f32) -> bool {
         vmin = min(vmin, v);
         vmax = max(vmax, v);
     }
+    return bricks_visible(vmin, vmax);
+}
+
+// Whether the box [vmin, vmax] (voxels) meets a brick that absorbs or shows, one voxel wider
+// (trilinear sampling). Conservative: a box over more than 64 bricks counts as visible.
+fn bricks_visible(vmin: vec3<f32>, vmax: vec3<f32>) -> bool {
+    let dims = vec3<f32>(1.0) / P.texel.xyz;
     if (any(vmax < vec3<f32>(-1.0)) || any(vmin > dims + vec3<f32>(1.0))) {
         return false;
     }

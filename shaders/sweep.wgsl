@@ -61,7 +61,7 @@ fn view_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_ind
     let steps = I.view_steps + wg.z;
     let group = wg.y * P.tiles.z + wg.x;
     var tile = group;
-    if (k >= 2u && P.culling.w == 1u) {
+    if (k >= 2u && (P.culling.w & 1u) == 1u) {
         // Only the tiles listed for this pass were dispatched (indirect).
         tile = tile_lists[(I.view_list % 3u) * P.tiles.y + group];
     } else if (group >= P.tiles.y) {
@@ -112,7 +112,7 @@ fn tiles_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_in
         return;
     }
     let next = I.view_steps + wg.z;
-    if (P.culling.w == 0u || next == 0u) {
+    if ((P.culling.w & 1u) == 0u || next == 0u) {
         return;
     }
     if (t == 0u) {

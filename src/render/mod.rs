@@ -96,6 +96,10 @@ pub struct RenderRequest {
     /// default. Each pass keeps its rays' state in registers between planes, so 1 and the
     /// default give the same image up to the rounding of the stored state.
     pub view_planes: u32,
+    /// Keep stepping the light no view ray still alive can read (which a render stops, with
+    /// the same image). Tests only: false in every real render.
+    #[doc(hidden)]
+    pub keep_unseen_light: bool,
 }
 
 impl RenderRequest {
@@ -110,6 +114,7 @@ impl RenderRequest {
             cancel: None,
             jitter: [0.0; 3],
             view_planes: 0,
+            keep_unseen_light: false,
         }
     }
 }

@@ -34,7 +34,8 @@ pub struct Params {
     pub rect: [u32; 4],
     /// View tiles in x, view workgroups, workgroups per dispatch row, light channels.
     pub tiles: [u32; 4],
-    /// Bricks along x, y, z; 1 when view tiles are listed per plane (else all are dispatched).
+    /// Bricks along x, y, z; bit 0: view tiles are listed per plane (else all are
+    /// dispatched), bit 1: light tiles no view ray can read stop being stepped.
     pub culling: [u32; 4],
     /// Beams: texture units per view unit along each axis at most (to turn the margin of
     /// `budget.z` into texture coordinates); w: 1 when light tiles are listed per plane (else

@@ -75,6 +75,9 @@ struct Layout {
     /// The light tiles each plane steps are listed on the device and dispatched indirectly
     /// (`light_tiles_listed` in beams.wgsl); else every tile of the plane's light window is.
     light_lists: bool,
+    /// Listed light tiles whose light no view ray still alive can read stop being stepped
+    /// (`light_tile_unseen` in beams.wgsl).
+    unseen_light_ends: bool,
     /// Planes each view pass advances its rays over (`view_main` in sweep.wgsl): several
     /// where the light they read stays where it was deposited (beams without refraction),
     /// one otherwise.
@@ -97,6 +100,7 @@ impl Layout {
             channels,
             lists: view_groups <= MAX_GROUPS_PER_ROW,
             light_lists: false,
+            unseen_light_ends: true,
             view_planes: 1,
             back_planes: 1,
         }
@@ -287,7 +291,12 @@ fn make_params(
             MAX_GROUPS_PER_ROW,
             layout.channels,
         ],
-        culling: [brick_dims[0], brick_dims[1], brick_dims[2], u32::from(layout.lists)],
+        culling: [
+            brick_dims[0],
+            brick_dims[1],
+            brick_dims[2],
+            u32::from(layout.lists) | u32::from(layout.unseen_light_ends) << 1,
+        ],
         light_box,
         sweep: [
             front_planes(layout.view_planes, layout.back_planes),
@@ -470,6 +479,7 @@ pub(super) fn run(
         && matches!(req.debug_view, DebugView::Image | DebugView::Medium)
         && super::bricks::clear_outside(&prepared.tf)
         && layout.beam_groups <= MAX_GROUPS_PER_ROW;
+    layout.unseen_light_ends = !req.keep_unseen_light;
     // View rays advance over several planes per pass where the light they read is the beams'
     // power kept per plane (no refraction, no scattered light in the deposit ring; as
     // `view_spans_planes` in view.wgsl) and their tiles are listed: as many as the power of
