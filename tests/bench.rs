@@ -213,6 +213,13 @@ fn tiny_speed_bench_counts_the_memory_it_reports() {
     );
     for r in &report.rows {
         assert!(r.planes > 0 && r.gpu_ms.median > 0.0, "{r:?}");
+        // One frame each: the passes' times are that frame's, split at timestamps between
+        // the passes, so they add up to its total (to the rounding of the sums).
+        let passes: f64 = r.pass_ms.iter().sum();
+        assert!(
+            r.pass_ms.iter().all(|&ms| ms >= 0.0) && (passes - r.gpu_ms.median).abs() <= 1e-9 * r.gpu_ms.median,
+            "{r:?}"
+        );
         // The meter sees every allocation, so the peak holds at least the textures and the
         // state buffers that were alive together during the frame.
         assert!(
@@ -237,6 +244,13 @@ fn tiny_speed_bench_counts_the_memory_it_reports() {
     assert_eq!(csv.lines().count(), 4, "{csv}");
     assert!(csv.starts_with("scene,features,viewport,tiny,planes"));
     assert!(csv.contains(",light_tile_steps,"), "{csv}");
+    assert!(
+        csv.lines()
+            .next()
+            .unwrap()
+            .ends_with(",light_ms,view_ms,listing_ms,finish_ms"),
+        "{csv}"
+    );
     let fit_csv = std::fs::read_to_string(&report.fit_csv).unwrap();
     assert_eq!(fit_csv.lines().count(), 2, "{fit_csv}");
     let _ = std::fs::remove_dir_all(&dir);

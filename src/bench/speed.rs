@@ -122,6 +122,9 @@ pub struct SpeedRow {
     pub gpu_ms: Spread,
     /// Time of the whole `Renderer::render` call (recording, submission, waits, read-back).
     pub wall_ms: Spread,
+    /// Median GPU time per frame of each pass (`RenderStats::pass_ms`: light, view, listing
+    /// and clearing, finish).
+    pub pass_ms: [f64; 4],
     pub light_grid: [u32; 2],
     /// Light-tile steps (`RenderStats::light_steps`), where light tiles are listed.
     pub light_steps: Option<u64>,
@@ -227,6 +230,7 @@ fn measure(
 ) -> Result<SpeedRow, BenchError> {
     let req = RenderRequest::new(size, size);
     let (mut gpu, mut wall) = (Vec::new(), Vec::new());
+    let mut passes: [Vec<f64>; 4] = Default::default();
     let mut peak = MemoryUse::default();
     let mut last = None;
     for _ in 0..frames {
@@ -234,6 +238,9 @@ fn measure(
         let out = renderer.render(prepared, &req)?;
         wall.push(start.elapsed().as_secs_f64() * 1e3);
         gpu.push(out.stats.gpu_ms);
+        for (p, ms) in passes.iter_mut().zip(out.stats.pass_ms) {
+            p.push(ms);
+        }
         peak.device_local = peak.device_local.max(out.stats.peak_memory.device_local);
         peak.host_visible = peak.host_visible.max(out.stats.peak_memory.host_visible);
         last = Some(out.stats);
@@ -247,6 +254,7 @@ fn measure(
         planes: s.planes,
         gpu_ms: Spread::of(gpu),
         wall_ms: Spread::of(wall),
+        pass_ms: passes.map(|mut p| median(&mut p)),
         light_grid: s.light_grid,
         light_steps: s.light_steps,
         footprint: s.rect,

@@ -36,7 +36,10 @@ pub fn write_markdown(path: &Path, rows: &[SpeedRow], fits: &[SpeedFit], c: &Con
         s,
         "Device: {}. GPU ms: median (min–max) of {} frames from timestamp queries, after one untimed \
          frame per scene (texture upload, pipelines). Wall ms: median time of the whole render call \
-         (recording, submission, read-back). ms/plane: median GPU ms over planes. Footprint: pixels \
+         (recording, submission, read-back). ms/plane: median GPU ms over planes. Light / view / \
+         listing: median GPU ms per frame of the light passes, the view passes and the listing of \
+         the next plane's tiles with the deposit ring's clearing and the barriers (timestamps \
+         between the passes; the final pass is the rest). Footprint: pixels \
          whose rays can meet the volume. Peak memory: the most allocated at once during a frame \
          (device-local: textures and state buffers; host-visible: parameters, brick flags, read-back \
          and, on a scene's first frame, staging).",
@@ -47,13 +50,13 @@ pub fn write_markdown(path: &Path, rows: &[SpeedRow], fits: &[SpeedFit], c: &Con
     }
     s.push_str("\n\n");
     s.push_str(
-        "| scene | features | viewport | planes | GPU ms per frame | wall ms | ms/plane | light grid | light tile steps | footprint px | state MiB | textures MiB | peak device MiB | peak host MiB |\n",
+        "| scene | features | viewport | planes | GPU ms per frame | wall ms | ms/plane | light / view / listing ms | light grid | light tile steps | footprint px | state MiB | textures MiB | peak device MiB | peak host MiB |\n",
     );
-    s.push_str("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    s.push_str("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for r in rows {
         let _ = writeln!(
             s,
-            "| {} | {} | {}² | {} | {:.1} ({:.1}–{:.1}) | {:.1} | {:.3} | {}×{} | {} | {}×{} | {:.1} | {:.1} | {:.1} | {:.1} |",
+            "| {} | {} | {}² | {} | {:.1} ({:.1}–{:.1}) | {:.1} | {:.3} | {:.1} / {:.1} / {:.1} | {}×{} | {} | {}×{} | {:.1} | {:.1} | {:.1} | {:.1} |",
             r.scene,
             r.features,
             r.size,
@@ -63,6 +66,9 @@ pub fn write_markdown(path: &Path, rows: &[SpeedRow], fits: &[SpeedFit], c: &Con
             r.gpu_ms.max,
             r.wall_ms.median,
             r.ms_per_plane(),
+            r.pass_ms[0],
+            r.pass_ms[1],
+            r.pass_ms[2],
             r.light_grid[0],
             r.light_grid[1],
             r.light_steps.map_or_else(|| "–".to_string(), |n| n.to_string()),
@@ -110,12 +116,12 @@ pub fn write_csv(path: &Path, rows: &[SpeedRow]) -> Result<(), String> {
     let mut s = String::from(
         "scene,features,viewport,tiny,planes,gpu_ms_median,gpu_ms_min,gpu_ms_max,wall_ms_median,ms_per_plane,\
          light_grid_w,light_grid_h,light_tile_steps,footprint_w,footprint_h,state_bytes,texture_bytes,\
-         peak_device_local_bytes,peak_host_visible_bytes\n",
+         peak_device_local_bytes,peak_host_visible_bytes,light_ms,view_ms,listing_ms,finish_ms\n",
     );
     for r in rows {
         let _ = writeln!(
             s,
-            "{},{},{},{},{},{:.3},{:.3},{:.3},{:.3},{:.5},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{:.3},{:.3},{:.3},{:.3},{:.5},{},{},{},{},{},{},{},{},{},{:.3},{:.3},{:.3},{:.3}",
             r.scene,
             r.features,
             r.size,
@@ -135,6 +141,10 @@ pub fn write_csv(path: &Path, rows: &[SpeedRow]) -> Result<(), String> {
             r.texture_bytes,
             r.peak_memory.device_local,
             r.peak_memory.host_visible,
+            r.pass_ms[0],
+            r.pass_ms[1],
+            r.pass_ms[2],
+            r.pass_ms[3],
         );
     }
     std::fs::write(path, s).map_err(|e| e.to_string())

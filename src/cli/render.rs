@@ -132,6 +132,10 @@ pub fn render(args: &RenderArgs) -> Result<()> {
             s.rect[0],
             s.rect[1],
         );
+        let [light, view, listing, finish] = s.pass_ms;
+        println!(
+            "GPU ms by pass: light {light:.1}, view {view:.1}, listing and clearing {listing:.1}, finish {finish:.1}"
+        );
         if let Some(steps) = s.light_steps {
             println!("light tile steps: {steps} (tiles of 8×8 beams stepped, over all planes)");
         }

@@ -32,7 +32,13 @@ impl Timestamps {
 
     /// Elapsed milliseconds between consecutive timestamps (`count - 1` values).
     pub fn read_ms(&self) -> Result<Vec<f64>, GpuError> {
-        let mut ticks = vec![0u64; self.count as usize];
+        self.read_first_ms(self.count)
+    }
+
+    /// Elapsed milliseconds between consecutive timestamps among the first `n` (all written
+    /// since the last reset: an unwritten one is never available).
+    pub fn read_first_ms(&self, n: u32) -> Result<Vec<f64>, GpuError> {
+        let mut ticks = vec![0u64; n.min(self.count) as usize];
         // SAFETY: the pool was written by a submission that has completed.
         unsafe {
             self.ctx.device.get_query_pool_results(

@@ -129,6 +129,11 @@ pub struct RenderStats {
     pub planes_run: u32,
     /// GPU time of the sweep and the final pass (timestamp queries), in milliseconds.
     pub gpu_ms: f64,
+    /// The sweep's GPU time by pass (timestamps between them), in milliseconds: the light
+    /// passes, the view passes, the listing of the next plane's tiles with the clearing of the
+    /// deposit ring and the barriers between planes, and the final pass with the read-back.
+    /// They add up to `gpu_ms` less the lattice's solve (`lbm`).
+    pub pass_ms: [f64; 4],
     pub ms_per_plane: f64,
     /// Bytes of the state buffers (light, beams or light grid, view rays).
     pub state_bytes: u64,

@@ -609,7 +609,9 @@ pub(super) fn run(
     } else {
         None
     };
-    let ts = Timestamps::new(ctx, 2)?;
+    // A timestamp at the start of each submission, after each plane's light, view and
+    // listing passes, and at its end (`RenderStats::pass_ms`).
+    let ts = Timestamps::new(ctx, 2 + 3 * PLANES_PER_SUBMIT)?;
 
     let mut sets = Vec::new();
     for p in pipelines {
@@ -689,6 +691,7 @@ pub(super) fn run(
     };
     let bar = progress_bar(req.progress, dispatches as u64);
     let mut gpu_ms = lbm_light.as_ref().map_or(0.0, |l| l.stats.gpu_ms);
+    let mut pass_ms = [0.0; 4];
     // Dispatch k's view pass, if it has one, advances the rays to plane k-1 from the plane the
     // pass before left them on: the first two one plane each, then `view_planes` at a time,
     // the last whatever is left.
@@ -717,6 +720,7 @@ pub(super) fn run(
         };
         r.reset_timestamps(&ts);
         r.timestamp(&ts, 0);
+        let mut stamps = 1;
         let end = (plane + chunk).min(dispatches + 1);
         while plane < end {
             let light_push = push(plane, 0, 0);
@@ -732,6 +736,8 @@ pub(super) fn run(
             } else if plane < view.planes && window > 0 {
                 r.dispatch(&pipelines[1], &sets[1], p, groups(window))?;
             }
+            r.timestamp(&ts, stamps);
+            stamps += 1;
             let view_now = !diagnoses_light && view_pass(plane);
             if view_now {
                 let v = push(plane, plane - last_view, view_passes);
@@ -743,6 +749,8 @@ pub(super) fn run(
                     r.dispatch(&pipelines[2], &sets[2], p, groups(layout.view_groups))?;
                 }
             }
+            r.timestamp(&ts, stamps);
+            stamps += 1;
             // Clears the ring for the next plane's deposits and lists the next view pass's
             // tiles (and the next plane's light tiles, from this plane's beams).
             if layout.light_lists || features.refraction {
@@ -767,6 +775,8 @@ pub(super) fn run(
                 r.fill_range(light_acc, ((plane as u64 + 1) % LIGHT_RING) * bytes, bytes, 0)?;
             }
             r.compute_to_indirect();
+            r.timestamp(&ts, stamps);
+            stamps += 1;
             plane += 1;
         }
         let last = plane > dispatches;
@@ -784,10 +794,17 @@ pub(super) fn run(
                 r.copy_buffer(ends, readback, ends.size);
             }
         }
-        r.timestamp(&ts, 1);
+        r.timestamp(&ts, stamps);
+        stamps += 1;
         r.submit_and_wait()?;
         cached.uploaded();
-        gpu_ms += ts.read_ms()?.iter().sum::<f64>();
+        // Light, view and listing per plane, then the finish pass (nothing before the last
+        // submission's end).
+        for (i, ms) in ts.read_first_ms(stamps)?.iter().enumerate() {
+            let pass = if i + 1 == stamps as usize - 1 { 3 } else { i % 3 };
+            pass_ms[pass] += ms;
+            gpu_ms += ms;
+        }
         if let Some(b) = &bar {
             b.set_position((plane - 1) as u64);
         }
@@ -815,6 +832,7 @@ pub(super) fn run(
                     planes: view.planes,
                     planes_run,
                     gpu_ms,
+                    pass_ms,
                     ms_per_plane: (gpu_ms - lbm_light.as_ref().map_or(0.0, |l| l.stats.gpu_ms))
                         / planes_run.max(1) as f64,
                     state_bytes: state.bytes,
