@@ -798,10 +798,12 @@ pub(super) fn run(
         stamps += 1;
         r.submit_and_wait()?;
         cached.uploaded();
-        // Light, view and listing per plane, then the finish pass (nothing before the last
-        // submission's end).
-        for (i, ms) in ts.read_first_ms(stamps)?.iter().enumerate() {
-            let pass = if i + 1 == stamps as usize - 1 { 3 } else { i % 3 };
+        // Light, view and listing per plane, then the finish pass: the last interval (nothing
+        // before the last submission's end).
+        let intervals = ts.read_first_ms(stamps)?;
+        let finish = intervals.len() - 1;
+        for (i, ms) in intervals.iter().enumerate() {
+            let pass = if i == finish { 3 } else { i % 3 };
             pass_ms[pass] += ms;
             gpu_ms += ms;
         }

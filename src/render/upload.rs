@@ -72,9 +72,6 @@ impl Staging {
     }
 }
 
-/// Where the particle and medium tables are in [`SceneTextures::images`].
-const TABLE_IMAGES: [usize; 2] = [2, 3];
-
 /// The pre-integrated particle and medium tables for `sample_distance`, created and staged:
 /// (image, staging offset) each, in that order.
 fn tables(
@@ -271,10 +268,13 @@ impl SceneTextures {
         let [(particle, p), (medium, m)] = tables(ctx, tf, sample_distance, &mut staging)?;
         self.particle_table = particle;
         self.medium_table = medium;
-        let uploads = vec![
-            (TABLE_IMAGES[0], vec![(p, self.particle_table.desc.extent)]),
-            (TABLE_IMAGES[1], vec![(m, self.medium_table.desc.extent)]),
-        ];
+        // Their places in the order `record_upload` indexes.
+        let images = self.images();
+        let at = |table: &Image| images.iter().position(|i| std::ptr::eq(*i, table));
+        let uploads = [(&self.particle_table, p), (&self.medium_table, m)]
+            .into_iter()
+            .filter_map(|(table, offset)| Some((at(table)?, vec![(offset, table.desc.extent)])))
+            .collect();
         Ok(PendingUpload {
             staging: Arc::new(staging.into_buffer(ctx)?),
             uploads,
@@ -286,8 +286,7 @@ impl SceneTextures {
         self.images().iter().map(|i| i.bytes()).sum::<u64>() + self.bricks.bytes()
     }
 
-    /// The images in the order [`PendingUpload`] indexes them (the order of creation; the
-    /// tables at [`TABLE_IMAGES`]).
+    /// The images in the order [`PendingUpload`] indexes them (the order of creation).
     fn images(&self) -> Vec<&Image> {
         vec![
             &self.volume,
