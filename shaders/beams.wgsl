@@ -581,12 +581,12 @@ fn deposit_scale(z: f32, d: vec3<f32>) -> f32 {
 // than that; elsewhere no view sample composites anything or carries the light on to a
 // segment that does.
 fn deposit_read(p: vec3<f32>, reach: f32) -> bool {
-    let size = vec3<u32>(deposit_cells[0], deposit_cells[1], deposit_cells[2]);
-    if (size.x == 0u || reach > bitcast<f32>(deposit_cells[3])) {
+    let size = vec3<u32>(deposit_header[0], deposit_header[1], deposit_header[2]);
+    if (size.x == 0u || reach > bitcast<f32>(deposit_header[3])) {
         return true;
     }
-    let offset = vec3<f32>(f32(deposit_cells[4]), f32(deposit_cells[5]), f32(deposit_cells[6]));
-    let per_unit = vec3<f32>(bitcast<f32>(deposit_cells[8]), bitcast<f32>(deposit_cells[9]), bitcast<f32>(deposit_cells[10]));
+    let offset = vec3<f32>(f32(deposit_header[4]), f32(deposit_header[5]), f32(deposit_header[6]));
+    let per_unit = vec3<f32>(bitcast<f32>(deposit_header[8]), bitcast<f32>(deposit_header[9]), bitcast<f32>(deposit_header[10]));
     let g = floor(volume_coord(p) * per_unit + offset);
     if (any(g < vec3<f32>(0.0)) || any(g >= vec3<f32>(size))) {
         return false;

@@ -97,6 +97,7 @@ fn debug_light(k: u32, p: vec2<u32>) -> LightSample {
 
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(global_invocation_id) gid: vec3<u32>) {
+    P = params;
     let size = image_size();
     if (i32(gid.x) >= size.x || i32(gid.y) >= size.y) {
         return;

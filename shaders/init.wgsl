@@ -2,6 +2,7 @@
 
 @compute @workgroup_size(TILE * TILE, 1, 1)
 fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
+    P = params;
     let group = wg.y * P.tiles.z + wg.x;
     let local = vec2<u32>(li % TILE, li / TILE);
     if (group < P.beam_grid.w) {

@@ -15,7 +15,10 @@ struct LbmParams {
     table: vec4<f32>,       // entries of `lbm_table`; unused
 }
 
-@group(0) @binding(0) var<storage, read> L: LbmParams;
+@group(0) @binding(0) var<storage, read> lbm_params: LbmParams;
+// Copied by each entry point before anything else and read from here (see `P` in
+// common.wgsl: a CPU driver loads storage buffers invocation by invocation inside branches).
+var<private> L: LbmParams;
 @group(0) @binding(1) var volume_tex: texture_3d<f32>;
 @group(0) @binding(2) var volume_sampler: sampler;   // clamp-to-border (0 outside)
 // Per data value: σ_t per voxel, albedo ω, anisotropy g, unused.
@@ -82,6 +85,7 @@ fn depth_to_light(p: vec3<f32>) -> f32 {
 // 1 − e^{−σ_t h} over its length h along the light, and passes on the fraction ω of it.
 @compute @workgroup_size(WG, 1, 1)
 fn deposit_main(@builtin(global_invocation_id) id: vec3<u32>) {
+    L = lbm_params;
     let i = id.x;
     if (i >= cell_count()) {
         return;
@@ -181,6 +185,7 @@ fn collide(i: u32, dir: u32) -> f32 {
 // the grid has left the medium.
 @compute @workgroup_size(WG, 1, 1)
 fn step_main(@builtin(global_invocation_id) id: vec3<u32>) {
+    L = lbm_params;
     let i = id.x;
     let n = cell_count();
     if (i >= n) {
@@ -201,6 +206,7 @@ fn step_main(@builtin(global_invocation_id) id: vec3<u32>) {
 // bounds.
 @compute @workgroup_size(WG, 1, 1)
 fn measure_main(@builtin(global_invocation_id) id: vec3<u32>) {
+    L = lbm_params;
     let i = id.x;
     let n = cell_count();
     if (i >= n) {

@@ -10,6 +10,8 @@
 
 @compute @workgroup_size(TILE * TILE, 1, 1)
 fn light_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
+    P = params;
+    copy_deposit_header();
     let k = dispatch_plane(wg);
     // The cells that can still reach the image on this plane or a later one: a window of
     // the light grid, in tiles (`light_windows` in state.rs).
@@ -40,11 +42,15 @@ fn light_listed(wg: vec3<u32>, li: u32, list: u32) {
 
 @compute @workgroup_size(TILE * TILE, 1, 1)
 fn light_listed_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
+    P = params;
+    copy_deposit_header();
     light_listed(wg, li, LIGHT_LISTED);
 }
 
 @compute @workgroup_size(TILE * TILE, 1, 1)
 fn light_edge_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
+    P = params;
+    copy_deposit_header();
     light_listed(wg, li, LIGHT_EDGE);
 }
 
@@ -55,6 +61,7 @@ fn tile_pixel(tile: u32, li: u32) -> vec2<u32> {
 
 @compute @workgroup_size(TILE * TILE, 1, 1)
 fn view_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
+    P = params;
     let k = dispatch_plane(wg);
     // Without refraction a view pass may advance its rays over several planes, whose light
     // is complete (`view_steps`): their state stays in the invocation, not in a dispatch each.
@@ -95,6 +102,7 @@ fn view_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_ind
 // invocations then find nothing to do); with refraction a barrier makes plane k's bends seen.
 @compute @workgroup_size(TILE * TILE, 1, 1)
 fn tiles_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
+    P = params;
     let k = dispatch_plane(wg);
     let group = wg.y * P.tiles.z + wg.x;
     let t = group * TILE * TILE + li;

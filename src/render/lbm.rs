@@ -279,7 +279,7 @@ fn lattice_set<'a>(
 ) -> Result<DescriptorSet<'a>, GpuError> {
     let mut s = DescriptorSet::new(ctx, p, label)?;
     s.write(&[
-        ("L", Resource::Buffer(&lattice.params)),
+        ("lbm_params", Resource::Buffer(&lattice.params)),
         ("volume_tex", Resource::Image(volume.texture)),
         ("volume_sampler", Resource::Sampler(volume.sampler)),
         ("lbm_table", Resource::Buffer(&lattice.table)),

@@ -618,7 +618,7 @@ pub(super) fn run(
         let mut set = DescriptorSet::new(ctx, p, &p.label)?;
         let t = &cached.textures;
         let mut writes = vec![
-            ("P", Resource::Buffer(&params)),
+            ("params", Resource::Buffer(&params)),
             ("volume_tex", Resource::Image(&t.volume)),
             ("linear_clamp", Resource::Sampler(&t.linear_clamp)),
             ("volume_sampler", Resource::Sampler(&t.volume_sampler)),
