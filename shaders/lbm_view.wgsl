@@ -12,11 +12,21 @@ struct LbmGrid {
 }
 
 @group(0) @binding(40) var<storage, read> lbm_grid: LbmGrid;
+// Its dimensions and scale, copied by the view pass's entry point (`copy_lbm_grid`, as `P`).
+var<private> lbm_dims: vec4<u32>;
+var<private> lbm_scale: vec4<f32>;
+
+fn copy_lbm_grid() {
+    if (LBM) {
+        lbm_dims = lbm_grid.dims;
+        lbm_scale = lbm_grid.scale;
+    }
+}
 // Per data value: σ_t per voxel, albedo ω, anisotropy g, unused (as in lbm.wgsl).
 @group(0) @binding(41) var<storage, read> lbm_albedo: array<vec4<f32>>;
 
 fn lbm_cell(c: vec3<i32>) -> f32 {
-    let d = vec3<i32>(lbm_grid.dims.xyz);
+    let d = vec3<i32>(lbm_dims.xyz);
     let k = clamp(c, vec3<i32>(0), d - 1);
     return lbm_grid.fluence[u32((k.z * d.y + k.y) * d.x + k.x)];
 }
@@ -41,7 +51,7 @@ fn lbm_seen(light: vec3<f32>, toward: vec3<f32>, value: f32) -> vec3<f32> {
 // ω(value) times the scattered fluence at the view-space point p (trilinear between cell
 // centres, clamped at the grid's faces), relative to the light's irradiance.
 fn lbm_in_scattering(p: vec3<f32>, value: f32) -> f32 {
-    let g = volume_coord(p) * lbm_grid.scale.xyz - 0.5;
+    let g = volume_coord(p) * lbm_scale.xyz - 0.5;
     let c = vec3<i32>(floor(g));
     let t = g - floor(g);
     let x00 = mix(lbm_cell(c), lbm_cell(c + vec3<i32>(1, 0, 0)), t.x);

@@ -62,6 +62,7 @@ fn tile_pixel(tile: u32, li: u32) -> vec2<u32> {
 @compute @workgroup_size(TILE * TILE, 1, 1)
 fn view_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
     P = params;
+    copy_lbm_grid();
     let k = dispatch_plane(wg);
     // Without refraction a view pass may advance its rays over several planes, whose light
     // is complete (`view_steps`): their state stays in the invocation, not in a dispatch each.
