@@ -200,7 +200,8 @@ const VIEW_TILE_BENT: u32 = 0x80000000u;
 // units as f32 bits; the padding before cell 0; cells per texture unit as f32 bits) and one
 // word per cell; cells along x 0: every beam deposits.
 @group(0) @binding(33) var<storage, read> deposit_cells: array<u32>;
-// Its header, copied by the light passes' entry points (`copy_deposit_header`, as `P`).
+// Its header, copied by the light passes' entry points (`copy_deposit_header`, as `P`): word
+// by word, not in a loop, whose body would be control flow around the loads again.
 var<private> deposit_header: array<u32, 12>;
 
 fn copy_deposit_header() {

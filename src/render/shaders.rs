@@ -134,4 +134,37 @@ mod tests {
             assert_eq!(compiled.workgroup_size, [Pass::TILE * Pass::TILE, 1, 1], "{pass:?}");
         }
     }
+
+    /// The first statement of each entry point in `source` (the line after `@compute` and the
+    /// function's opening line).
+    fn entry_starts(source: &str) -> Vec<(&str, &str)> {
+        let lines: Vec<&str> = source.lines().collect();
+        lines
+            .iter()
+            .enumerate()
+            .filter(|(_, l)| l.starts_with("@compute"))
+            .map(|(i, _)| (lines[i + 1], lines[i + 2].trim()))
+            .collect()
+    }
+
+    /// The parameters are read from a private copy that every entry point makes before
+    /// anything else (`P` in common.wgsl, `L` in lbm.wgsl); an entry point without it would
+    /// read zeros, or, with the copy further down, pay for the loads it was made to avoid.
+    #[test]
+    fn every_entry_point_first_copies_its_parameters() {
+        let mut entries = 0;
+        for pass in [Pass::Init, Pass::Light, Pass::Finish] {
+            for (entry, first) in entry_starts(pass.body()) {
+                assert_eq!(first, "P = params;", "{entry}");
+                entries += 1;
+            }
+        }
+        for (entry, first) in entry_starts(crate::render::lbm::SOURCE) {
+            assert_eq!(first, "L = lbm_params;", "{entry}");
+            entries += 1;
+        }
+        // init, finish, the sweep's five (light, listed light, edge light, view, tiles), the
+        // lattice's three.
+        assert_eq!(entries, 10);
+    }
 }
