@@ -39,13 +39,23 @@ struct Beam {
     plane: u32,         // the plane it was stored on (light tiles listed: not always the last)
 }
 
-fn load_beam(index: u32, half: u32, z: f32) -> Beam {
-    let n = beam_count();
-    let aux = beam_aux[half * n + index];
-    let ij = vec2<u32>(index % P.beam_grid.x, index / P.beam_grid.x);
+const BEAM_AUX: u32 = 0u;
+const BEAM_POS: u32 = 2u;
+
+// Beam ij's texel of layer `layer` (BEAM_AUX or BEAM_POS) in half `half` of `beam_state`.
+fn beam_texel(ij: vec2<u32>, layer: u32, half: u32) -> vec4<f32> {
+    return textureLoad(beam_state, vec2<i32>(ij), i32(layer + half));
+}
+
+fn store_beam_texel(ij: vec2<u32>, layer: u32, half: u32, v: vec4<f32>) {
+    textureStore(beam_state, vec2<i32>(ij), i32(layer + half), v);
+}
+
+fn load_beam(ij: vec2<u32>, half: u32, z: f32) -> Beam {
+    let aux = beam_texel(ij, BEAM_AUX, half);
     var b: Beam;
     if (REFRACTION) {
-        let a = beam_pos[half * n + index];
+        let a = beam_texel(ij, BEAM_POS, half);
         b.pos = vec3<f32>(a.xy, z);
         b.v = vec3<f32>(a.zw, aux.x);
     } else {
@@ -55,7 +65,7 @@ fn load_beam(index: u32, half: u32, z: f32) -> Beam {
     }
     b.value = aux.y;
     b.shadow = aux.z;
-    b.power = load_beam_power(half * n + index).rgb;
+    b.power = load_beam_power(half, ij);
     b.plane = u32(aux.w);
     return b;
 }
@@ -122,8 +132,7 @@ fn pre_entry_beam(ij: vec2<u32>, plane: u32, exact: bool) -> Beam {
 // Beam ij's state on plane `plane`, which with light tiles listed may have been stored on an
 // earlier plane (`load_stored_beam`).
 fn load_beam_at(ij: vec2<u32>, plane: u32, exact: bool) -> Beam {
-    let index = ij.y * P.beam_grid.x + ij.x;
-    var b = load_beam(index, plane % 2u, plane_z(plane));
+    var b = load_beam(ij, plane % 2u, plane_z(plane));
     if (light_tiles_listed() && b.plane != plane) {
         b = load_stored_beam(ij, plane, exact);
     }
@@ -134,13 +143,11 @@ fn load_beam_at(ij: vec2<u32>, plane: u32, exact: bool) -> Beam {
 // two halves carried straight from its plane (the tile is no longer stepped), or, if that is
 // plane 0, `pre_entry_beam` (never stepped).
 fn load_stored_beam(ij: vec2<u32>, plane: u32, exact: bool) -> Beam {
-    let n = beam_count();
-    let index = ij.y * P.beam_grid.x + ij.x;
     var half = plane % 2u;
-    var stored = u32(beam_aux[half * n + index].w);
+    var stored = u32(beam_texel(ij, BEAM_AUX, half).w);
     // The other half may be being written on the plane after (a tile that starts there): only
     // a plane before counts.
-    let other = u32(beam_aux[(1u - half) * n + index].w);
+    let other = u32(beam_texel(ij, BEAM_AUX, 1u - half).w);
     if (other > stored && other < plane) {
         half = 1u - half;
         stored = other;
@@ -153,7 +160,7 @@ fn load_stored_beam(ij: vec2<u32>, plane: u32, exact: bool) -> Beam {
     if (REFRACTION) {
         z = plane_z(stored);
     }
-    var b = load_beam(index, half, z);
+    var b = load_beam(ij, half, z);
     if (REFRACTION) {
         b.pos = vec3<f32>(drift(b.pos, b.v, plane_z(plane)).xy, plane_z(plane));
     }
@@ -375,15 +382,14 @@ fn reaches_box(p: vec3<f32>, d: vec3<f32>, extra: f32) -> bool {
     return hit && t0 <= t1;
 }
 
-// Stores beam `index`'s state on plane `plane` in half `half` (the plane in aux.w: with light
+// Stores beam ij's state on plane `plane` in half `half` (the plane in aux.w: with light
 // tiles listed a beam not stepped on a plane is found in the other half, or not at all).
-fn store_beam(index: u32, half: u32, plane: u32, b: Beam) {
-    let n = beam_count();
+fn store_beam(ij: vec2<u32>, half: u32, plane: u32, b: Beam) {
     if (REFRACTION) {
-        beam_pos[half * n + index] = vec4<f32>(b.pos.xy, b.v.xy);
+        store_beam_texel(ij, BEAM_POS, half, vec4<f32>(b.pos.xy, b.v.xy));
     }
-    beam_aux[half * n + index] = vec4<f32>(b.v.z, b.value, b.shadow, f32(plane));
-    store_beam_power(half * n + index, vec4<f32>(b.power, 0.0));
+    store_beam_texel(ij, BEAM_AUX, half, vec4<f32>(b.v.z, b.value, b.shadow, f32(plane)));
+    store_beam_power(half, ij, b.power);
 }
 
 // Position on the plane at depth z of a beam last seen at `pos` with direction `v`: the
@@ -629,19 +635,19 @@ fn beams_init(ij: vec2<u32>) {
     b.shadow = z0;
     b.power = vec3<f32>(1.0);
     // Both halves: with light tiles listed, a beam found on plane 0 in both was never stepped.
-    store_beam(index, 0u, 0u, b);
-    store_beam(index, 1u, 0u, b);
+    store_beam(ij, 0u, 0u, b);
+    store_beam(ij, 1u, 0u, b);
     if (!REFRACTION) {
         // The view looks up every cell's light (and the power before the segment): cells
         // outside the volume's box may not be stepped, and what it reads there (where no
         // particle is) must at least be finite.
-        store_beam_power(2u * beam_count() + index, vec4<f32>(b.power, 0.0));
-        store_beam_power(3u * beam_count() + index, vec4<f32>(b.power, 0.0));
+        store_beam_power(2u, ij, b.power);
+        store_beam_power(3u, ij, b.power);
     }
     if (SCATTER) {
-        beam_scatter[3u * index] = vec4<f32>(0.0);
-        beam_scatter[3u * index + 1u] = vec4<f32>(0.0);
-        beam_scatter[3u * index + 2u] = vec4<f32>(0.0);
+        for (var j = 0; j < 3; j++) {
+            textureStore(beam_scatter, vec2<i32>(ij), j, vec4<f32>(0.0));
+        }
     }
     if (!REFRACTION) {
         return;
@@ -671,18 +677,16 @@ fn load_neighbour(ij: vec2<i32>, plane: u32, z: f32, own_tile: u32, current: boo
     }
     var b: Beam;
     if (current) {
-        // Only the fields a neighbour gives: a CPU driver loads a storage buffer component by
-        // component and invocation by invocation, so the whole record (load_beam) costs more
-        // (on the CT head 7–9 % of the light pass with refraction, a fifth with soft light alone).
-        let i = (plane % 2u) * beam_count() + u32(ij.y) * P.beam_grid.x + u32(ij.x);
+        // Only the fields a neighbour gives (its power only for the soft light).
+        let aux = beam_texel(vec2<u32>(ij), BEAM_AUX, plane % 2u);
         if (REFRACTION) {
-            let a = beam_pos[i];
+            let a = beam_texel(vec2<u32>(ij), BEAM_POS, plane % 2u);
             b.pos = vec3<f32>(a.xy, plane_z(plane));
-            b.v = vec3<f32>(a.zw, beam_aux[i].x);
+            b.v = vec3<f32>(a.zw, aux.x);
         }
-        b.shadow = beam_aux[i].z;
+        b.shadow = aux.z;
         if (LIGHT_FILTER) {
-            b.power = load_beam_power(i).rgb;
+            b.power = load_beam_power(plane % 2u, vec2<u32>(ij));
         }
     } else {
         // Within the beam's own tile, a neighbour not stepped yet starts with it: drifted to
@@ -783,7 +787,7 @@ fn beams_step(ij: vec2<u32>, k: u32, tile: u32, mode: u32) {
     let ds = P.plane.y;
     var b: Beam;
     if (current) {
-        b = load_beam(index, (k - 1u) % 2u, plane_z(k - 1u));
+        b = load_beam(ij, (k - 1u) % 2u, plane_z(k - 1u));
     } else {
         b = load_beam_at(ij, k - 1u, true);
     }
@@ -861,21 +865,21 @@ fn beams_step(ij: vec2<u32>, k: u32, tile: u32, mode: u32) {
     }
 
     if (!REFRACTION || refracted_power_ring()) {
-        store_beam_power(front_power_region(k) * beam_count() + index, vec4<f32>(front, 0.0));
+        store_beam_power(front_power_region(k), ij, front);
         // Not stepped on plane k-1 (read before this step stores its own state).
-        let fresh = REFRACTION && !current && u32(beam_aux[((k - 1u) % 2u) * beam_count() + index].w) != k - 1u;
+        let fresh = REFRACTION && !current && u32(beam_texel(ij, BEAM_AUX, (k - 1u) % 2u).w) != k - 1u;
         if (fresh) {
             // The beam's first step: before it nothing had changed its power (its tile is
             // stepped from where its light can change), so it had this on the planes its
             // deposits reach back to. (A tile stays `LIGHT_EDGE` while a neighbour is not
             // stepped; its beams keep their history then.)
             for (var j = 1u; j < min(P.sweep.y, k); j++) {
-                store_beam_power(front_power_region(k - j) * beam_count() + index, vec4<f32>(front, 0.0));
+                store_beam_power(front_power_region(k - j), ij, front);
             }
         }
     }
     if (SCATTER) {
-        spread_step(index, k, b, lost_before, x0, value_front, du, dv);
+        spread_step(ij, index, k, b, lost_before, x0, value_front, du, dv);
     }
     // How far the deposit of the footprint on plane k reaches (the kick below turns the beam,
     // it does not move it).
@@ -891,7 +895,7 @@ fn beams_step(ij: vec2<u32>, k: u32, tile: u32, mode: u32) {
                 // (`beams_light_through`); none once it has left the sweep (turned back by
                 // total internal reflection: its light is not carried on).
                 let m = min(P.sweep.y, k);
-                deposited.power = load_beam_power(front_power_region(k + 1u - m) * beam_count() + index).rgb;
+                deposited.power = load_beam_power(front_power_region(k + 1u - m), ij);
             }
         }
         deposit_beam(k, deposited, w, reach, hash(index ^ hash(k ^ 0x5bd1e995u)));
@@ -904,7 +908,7 @@ fn beams_step(ij: vec2<u32>, k: u32, tile: u32, mode: u32) {
             b.power = vec3<f32>(0.0);
         }
     }
-    store_beam(index, k % 2u, k, b);
+    store_beam(ij, k % 2u, k, b);
     if (dark_tiles_end() && mode != LIGHT_WINDOW && max(front.r, max(front.g, front.b)) > 0.0) {
         atomicMax(&light_lit[tile], k);
     }
@@ -933,7 +937,7 @@ fn beam_cell_power(region: u32, c: vec2<i32>) -> vec3<f32> {
     if (c.x < 0 || c.y < 0 || c.x >= i32(P.beam_grid.x) || c.y >= i32(P.beam_grid.y)) {
         return vec3<f32>(1.0);
     }
-    return load_beam_power(region * beam_count() + u32(c.y) * P.beam_grid.x + u32(c.x)).rgb;
+    return load_beam_power(region, vec2<u32>(c));
 }
 
 // Without refraction: a bilinear lookup at p of the beams' cells' power in `region`.
@@ -1276,11 +1280,11 @@ fn spread_behind(m: vec4<f32>, w: f32, e: vec4<f32>, frac: f32) -> f32 {
 // One segment of the spread mode for beam `index`, whose unscattered power went from
 // `u_before` to b.power over the segment from x0 to b.pos (front value `value_front`, back
 // value b.value); deposits its scattered light on plane k. du, dv: the beam's cell.
-fn spread_step(index: u32, k: u32, b: Beam, u_before: vec3<f32>, x0: vec3<f32>, value_front: f32, du: vec3<f32>, dv: vec3<f32>) {
-    let n = beam_count();
-    let read = 3u * (((k - 1u) % 2u) * n + index);
-    let write = 3u * ((k % 2u) * n + index);
-    let a = beam_scatter[read];
+fn spread_step(ij: vec2<u32>, index: u32, k: u32, b: Beam, u_before: vec3<f32>, x0: vec3<f32>, value_front: f32, du: vec3<f32>, dv: vec3<f32>) {
+    let t = vec2<i32>(ij);
+    let read = i32(3u * ((k - 1u) % 2u));
+    let write = i32(3u * (k % 2u));
+    let a = textureLoad(beam_scatter, t, read);
     var scattered = a.rgb;
     let l = length(b.pos - x0);
     let ratio = l / P.plane.y;
@@ -1294,8 +1298,8 @@ fn spread_step(index: u32, k: u32, b: Beam, u_before: vec3<f32>, x0: vec3<f32>, 
     let tau = -log(max(1.0 - alpha, 1e-30));
     let sc = scatter_coefficients(split.y);
     let albedo = clamp(sc.x, 0.0, 1.0);
-    let m_before = beam_scatter[read + 1u];
-    let e_before = beam_scatter[read + 2u];
+    let m_before = textureLoad(beam_scatter, t, read + 1);
+    let e_before = textureLoad(beam_scatter, t, read + 2);
     let m = spread_moments(m_before, albedo * tau, sc.y, l);
     // The lag of all the light behind the beam, s − E[z]: it grows by ∫(1 − P₁) over the
     // segment, P₁ = e^{−(1−g)∫b} at the local g (exact where g is constant).
@@ -1319,9 +1323,9 @@ fn spread_step(index: u32, k: u32, b: Beam, u_before: vec3<f32>, x0: vec3<f32>, 
     // Scattered light goes on losing only what is absorbed: (1 − ω) of the extinction, and
     // the medium; the unscattered light gives it ω of what the particles took.
     scattered = scattered * (1.0 - left) * exp(-(1.0 - albedo) * tau) * t_medium + u_before * alpha * albedo * t_medium;
-    beam_scatter[write] = vec4<f32>(scattered, lag);
-    beam_scatter[write + 1u] = m;
-    beam_scatter[write + 2u] = e;
+    textureStore(beam_scatter, t, write, vec4<f32>(scattered, lag));
+    textureStore(beam_scatter, t, write + 1, m);
+    textureStore(beam_scatter, t, write + 2, e);
     if (max(scattered.r, max(scattered.g, scattered.b)) <= 0.0) {
         return;
     }

@@ -131,22 +131,33 @@ var<private> P: Params;
 @group(0) @binding(4) var gradient_tex: texture_3d<f32>;
 @group(0) @binding(5) var particle_table: texture_2d<f32>;   // rgb: premultiplied colour, a: τ_α
 @group(0) @binding(6) var medium_table: texture_2d<f32>;     // rgb: τ_m
-// Light at each view ray's position on its current plane (rgb), the front end of its next
-// segment; see `load_view_color`.
-@group(0) @binding(7) var<storage, read_write> view_light: array<u32>;
 @group(0) @binding(8) var env_tex: texture_2d<f32>;
 @group(0) @binding(9) var env_sampler: sampler;
 
-// View rays, one per pixel, updated in place.
-@group(0) @binding(10) var<storage, read_write> view_ray: array<vec4<f32>>;   // x, y on the plane, v.x, v.y
-@group(0) @binding(11) var<storage, read_write> view_aux: array<vec4<f32>>;   // v.z, data value, alive (1/0), η
-@group(0) @binding(12) var<storage, read_write> view_color: array<u32>;       // rgba (colour, opacity); see `load_view_color`
-@group(0) @binding(13) var<storage, read_write> view_medium: array<u32>;      // rgb medium transmittance
+// View rays, a texel per pixel, updated in place; images rather than buffers for the reason
+// given at `beam_state`. `view_rays`: layer VIEW_AUX v.z, the data value, the plane the ray is
+// on plus one (0 once ended), η; layer VIEW_RAY with refraction x, y on the plane, v.x, v.y.
+// `view_shade`: the composited colour and opacity (VIEW_COLOR), the light at the ray's
+// position, the front end of its next segment (VIEW_LIGHT), with the medium its rgb
+// transmittance (VIEW_MEDIUM); f16 rgba in one layer each, or with F32_STATE f32 in two.
+@group(0) @binding(10) var view_rays: texture_storage_2d_array<rgba32float, read_write>;
+@group(0) @binding(12) var view_shade: texture_storage_2d_array<rg32uint, read_write>;
+const VIEW_AUX: i32 = 0;
+const VIEW_RAY: i32 = 1;
+const VIEW_COLOR: u32 = 0u;
+const VIEW_LIGHT: u32 = 1u;
+const VIEW_MEDIUM: u32 = 2u;
 
-// Forward beams: two halves (plane parity) of beam_grid.x × beam_grid.y beams each.
-@group(0) @binding(14) var<storage, read_write> beam_pos: array<vec4<f32>>;   // x, y on the plane, v.x, v.y
-@group(0) @binding(15) var<storage, read_write> beam_aux: array<vec4<f32>>;   // v.z, data value, shadow depth, unused
-@group(0) @binding(16) var<storage, read_write> beam_power: array<u32>;       // rgb power (relative to a plane-0 cell), see `load_view_color`
+// Forward beams: a texel per beam of the beam_grid.x × beam_grid.y grid, in two halves
+// (plane parity): layer h holds v.z, the data value, the shadow depth and the plane stored on
+// (`BEAM_AUX`), layer 2 + h with refraction x, y on the plane and v.x, v.y (`BEAM_POS`). An
+// image, not a buffer: a CPU driver fetches texels for all invocations at once, while it
+// loads a storage buffer inside a branch invocation by invocation and component by
+// component (the neighbours' records are read inside one).
+@group(0) @binding(14) var beam_state: texture_storage_2d_array<rgba32float, read_write>;
+// The beams' rgb power (relative to a plane-0 cell) by region (`load_beam_power`): regions 0
+// and 1 the halves, from 2 on the power before the segment to a plane (`front_power_region`).
+@group(0) @binding(16) var beam_power: texture_storage_2d_array<rg32uint, read_write>;
 // Light deposited on four planes in turn (fixed point, see `ACC_SCALE`).
 @group(0) @binding(17) var<storage, read_write> light_acc: array<atomic<u32>>;
 
@@ -172,12 +183,13 @@ const VIEW_TILE_BENT: u32 = 0x80000000u;
 @group(0) @binding(24) var<storage, read_write> tile_lists: array<u32>;
 @group(0) @binding(25) var<storage, read_write> tile_args: array<atomic<u32>>;
 // Spread mode (SCATTER): per data value (the pre-integration tables' lattice) the albedo ω
-// and the anisotropy g; per beam and half of the ping-pong pair two vec4: the scattered
-// power (rgb) and the lag of all its light behind the beam (s − E[z], view units), then the
-// spread moments (1 − P₂, C, R; `transfer::scattering::SpreadMoments`) and the scattering
-// optical depth along its path.
+// and the anisotropy g; per beam and half h of the ping-pong pair three texels, in layers
+// 3h, 3h + 1, 3h + 2: the scattered power (rgb) and the lag of all its light behind the beam
+// (s − E[z], view units); the spread moments (1 − P₂, C, R;
+// `transfer::scattering::SpreadMoments`) and the scattering optical depth along its path; the
+// state of the face its light entered by (`spread_entry`).
 @group(0) @binding(26) var<storage, read> scatter_table: array<vec4<f32>>;
-@group(0) @binding(27) var<storage, read_write> beam_scatter: array<vec4<f32>>;
+@group(0) @binding(27) var beam_scatter: texture_storage_2d_array<rgba32float, read_write>;
 
 // Beams with light tiles listed per plane (`light_tiles_listed`), per tile of the light grid:
 // computed on the CPU (`light_tiles::spans`), the first plane on which one of its beams,
@@ -228,77 +240,62 @@ fn dispatch_plane(wg: vec3<u32>) -> u32 {
     return I.plane_index + wg.z;
 }
 
-// rgba state texels of the precision buffers: two packed halves or four floats each.
-fn load_view_color(i: u32) -> vec4<f32> {
-    if (F32_STATE) {
-        let b = i * 4u;
-        return vec4<f32>(bitcast<f32>(view_color[b]), bitcast<f32>(view_color[b + 1u]),
-                         bitcast<f32>(view_color[b + 2u]), bitcast<f32>(view_color[b + 3u]));
-    }
-    let b = i * 2u;
-    return vec4<f32>(unpack2x16float(view_color[b]), unpack2x16float(view_color[b + 1u]));
+fn load_view_aux(px: vec2<u32>) -> vec4<f32> {
+    return textureLoad(view_rays, vec2<i32>(px), VIEW_AUX);
 }
 
-fn store_view_color(i: u32, v: vec4<f32>) {
+fn store_view_aux(px: vec2<u32>, v: vec4<f32>) {
+    textureStore(view_rays, vec2<i32>(px), VIEW_AUX, v);
+}
+
+fn load_view_ray(px: vec2<u32>) -> vec4<f32> {
+    return textureLoad(view_rays, vec2<i32>(px), VIEW_RAY);
+}
+
+fn store_view_ray(px: vec2<u32>, v: vec4<f32>) {
+    textureStore(view_rays, vec2<i32>(px), VIEW_RAY, v);
+}
+
+// Pixel px's rgba `item` of `view_shade` (VIEW_COLOR, VIEW_LIGHT, VIEW_MEDIUM).
+fn load_view_shade(px: vec2<u32>, item: u32) -> vec4<f32> {
     if (F32_STATE) {
-        let b = i * 4u;
-        view_color[b] = bitcast<u32>(v.x);
-        view_color[b + 1u] = bitcast<u32>(v.y);
-        view_color[b + 2u] = bitcast<u32>(v.z);
-        view_color[b + 3u] = bitcast<u32>(v.w);
+        let a = textureLoad(view_shade, vec2<i32>(px), i32(2u * item)).xy;
+        let b = textureLoad(view_shade, vec2<i32>(px), i32(2u * item + 1u)).xy;
+        return bitcast<vec4<f32>>(vec4<u32>(a, b));
+    }
+    let a = textureLoad(view_shade, vec2<i32>(px), i32(item)).xy;
+    return vec4<f32>(unpack2x16float(a.x), unpack2x16float(a.y));
+}
+
+fn store_view_shade(px: vec2<u32>, item: u32, v: vec4<f32>) {
+    if (F32_STATE) {
+        let u = bitcast<vec4<u32>>(v);
+        textureStore(view_shade, vec2<i32>(px), i32(2u * item), vec4<u32>(u.xy, 0u, 0u));
+        textureStore(view_shade, vec2<i32>(px), i32(2u * item + 1u), vec4<u32>(u.zw, 0u, 0u));
         return;
     }
-    let b = i * 2u;
-    view_color[b] = pack2x16float(v.xy);
-    view_color[b + 1u] = pack2x16float(v.zw);
+    textureStore(view_shade, vec2<i32>(px), i32(item), vec4<u32>(pack2x16float(v.xy), pack2x16float(v.zw), 0u, 0u));
 }
 
-fn load_view_medium(i: u32) -> vec4<f32> {
+// Beam ij's power in region `region` of `beam_power`: f16 rgb in one layer, or with
+// F32_STATE f32 rgb in two (r, g and b).
+fn load_beam_power(region: u32, ij: vec2<u32>) -> vec3<f32> {
     if (F32_STATE) {
-        let b = i * 4u;
-        return vec4<f32>(bitcast<f32>(view_medium[b]), bitcast<f32>(view_medium[b + 1u]),
-                         bitcast<f32>(view_medium[b + 2u]), bitcast<f32>(view_medium[b + 3u]));
+        let a = textureLoad(beam_power, vec2<i32>(ij), i32(2u * region)).xy;
+        let b = textureLoad(beam_power, vec2<i32>(ij), i32(2u * region + 1u)).x;
+        return vec3<f32>(bitcast<f32>(a.x), bitcast<f32>(a.y), bitcast<f32>(b));
     }
-    let b = i * 2u;
-    return vec4<f32>(unpack2x16float(view_medium[b]), unpack2x16float(view_medium[b + 1u]));
+    let a = textureLoad(beam_power, vec2<i32>(ij), i32(region)).xy;
+    return vec4<f32>(unpack2x16float(a.x), unpack2x16float(a.y)).rgb;
 }
 
-fn store_view_medium(i: u32, v: vec4<f32>) {
+fn store_beam_power(region: u32, ij: vec2<u32>, v: vec3<f32>) {
     if (F32_STATE) {
-        let b = i * 4u;
-        view_medium[b] = bitcast<u32>(v.x);
-        view_medium[b + 1u] = bitcast<u32>(v.y);
-        view_medium[b + 2u] = bitcast<u32>(v.z);
-        view_medium[b + 3u] = bitcast<u32>(v.w);
+        textureStore(beam_power, vec2<i32>(ij), i32(2u * region), vec4<u32>(bitcast<u32>(v.x), bitcast<u32>(v.y), 0u, 0u));
+        textureStore(beam_power, vec2<i32>(ij), i32(2u * region + 1u), vec4<u32>(bitcast<u32>(v.z), 0u, 0u, 0u));
         return;
     }
-    let b = i * 2u;
-    view_medium[b] = pack2x16float(v.xy);
-    view_medium[b + 1u] = pack2x16float(v.zw);
-}
-
-fn load_beam_power(i: u32) -> vec4<f32> {
-    if (F32_STATE) {
-        let b = i * 4u;
-        return vec4<f32>(bitcast<f32>(beam_power[b]), bitcast<f32>(beam_power[b + 1u]),
-                         bitcast<f32>(beam_power[b + 2u]), bitcast<f32>(beam_power[b + 3u]));
-    }
-    let b = i * 2u;
-    return vec4<f32>(unpack2x16float(beam_power[b]), unpack2x16float(beam_power[b + 1u]));
-}
-
-fn store_beam_power(i: u32, v: vec4<f32>) {
-    if (F32_STATE) {
-        let b = i * 4u;
-        beam_power[b] = bitcast<u32>(v.x);
-        beam_power[b + 1u] = bitcast<u32>(v.y);
-        beam_power[b + 2u] = bitcast<u32>(v.z);
-        beam_power[b + 3u] = bitcast<u32>(v.w);
-        return;
-    }
-    let b = i * 2u;
-    beam_power[b] = pack2x16float(v.xy);
-    beam_power[b + 1u] = pack2x16float(v.zw);
+    textureStore(beam_power, vec2<i32>(ij), i32(region), vec4<u32>(pack2x16float(v.xy), pack2x16float(vec2<f32>(v.z, 0.0)), 0u, 0u));
 }
 
 fn load_back_light(i: u32) -> vec4<f32> {
@@ -323,30 +320,6 @@ fn store_back_light(i: u32, v: vec4<f32>) {
     let b = i * 2u;
     back_light[b] = pack2x16float(v.xy);
     back_light[b + 1u] = pack2x16float(v.zw);
-}
-
-fn load_view_light(i: u32) -> vec4<f32> {
-    if (F32_STATE) {
-        let b = i * 4u;
-        return vec4<f32>(bitcast<f32>(view_light[b]), bitcast<f32>(view_light[b + 1u]),
-                         bitcast<f32>(view_light[b + 2u]), bitcast<f32>(view_light[b + 3u]));
-    }
-    let b = i * 2u;
-    return vec4<f32>(unpack2x16float(view_light[b]), unpack2x16float(view_light[b + 1u]));
-}
-
-fn store_view_light(i: u32, v: vec4<f32>) {
-    if (F32_STATE) {
-        let b = i * 4u;
-        view_light[b] = bitcast<u32>(v.x);
-        view_light[b + 1u] = bitcast<u32>(v.y);
-        view_light[b + 2u] = bitcast<u32>(v.z);
-        view_light[b + 3u] = bitcast<u32>(v.w);
-        return;
-    }
-    let b = i * 2u;
-    view_light[b] = pack2x16float(v.xy);
-    view_light[b + 1u] = pack2x16float(v.zw);
 }
 
 fn plane_z(i: u32) -> f32 {

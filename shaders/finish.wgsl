@@ -5,8 +5,8 @@
 fn final_dir(p: vec2<i32>) -> vec3<f32> {
     let c = clamp(p, vec2<i32>(0), image_size() - vec2<i32>(1));
     if (REFRACTION && in_rect(c)) {
-        let i = pixel_index(vec2<u32>(c));
-        return normalize(vec3<f32>(view_ray[i].zw, view_aux[i].x));
+        let px = vec2<u32>(c);
+        return normalize(vec3<f32>(load_view_ray(px).zw, load_view_aux(px).x));
     }
     return primary_dir(vec2<f32>(c));
 }
@@ -104,14 +104,13 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(global_invocation_id) gid
     }
     let k = dispatch_plane(wg);
     let p = vec2<i32>(gid.xy);
-    let i = pixel_index(gid.xy);
     var out = vec4<f32>(0.0, 0.0, 0.0, 1.0);
     var color = vec4<f32>(0.0);
     var medium = vec3<f32>(1.0);
     if (in_rect(p)) {
-        color = load_view_color(i);
+        color = load_view_shade(gid.xy, VIEW_COLOR);
         if (MEDIUM) {
-            medium = load_view_medium(i).rgb;
+            medium = load_view_shade(gid.xy, VIEW_MEDIUM).rgb;
         }
     }
     switch DEBUG_VIEW {
@@ -135,5 +134,5 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(global_invocation_id) gid
             out = vec4<f32>(color.rgb + (1.0 - color.a) * medium * env, 1.0);
         }
     }
-    image_out[i] = out;
+    image_out[pixel_index(gid.xy)] = out;
 }

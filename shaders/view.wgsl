@@ -21,9 +21,9 @@ fn light_through(k: u32, p: vec3<f32>, value: f32) -> vec3<f32> {
 }
 
 // The ray's position on plane k (view space).
-fn view_position(px: vec2<u32>, i: u32, k: u32) -> vec3<f32> {
+fn view_position(px: vec2<u32>, k: u32) -> vec3<f32> {
     if (REFRACTION) {
-        return vec3<f32>(view_ray[i].xy, plane_z(k));
+        return vec3<f32>(load_view_ray(px).xy, plane_z(k));
     }
     return unproject(vec2<f32>(px), plane_z(k));
 }
@@ -39,7 +39,6 @@ fn view_init(px: vec2<u32>) {
         return;
     }
     atomicAdd(&view_tiles[pixel_tile(px)], 1u);
-    let i = pixel_index(px);
     let t = vec2<f32>(px);
     let x = unproject(t, P.plane.x);
     let d = primary_dir(t);
@@ -49,33 +48,33 @@ fn view_init(px: vec2<u32>) {
         let ix = index_at(x);
         eta = ix.eta;
         v = entering(d, eta);
-        view_ray[i] = vec4<f32>(x.xy, v.xy);
+        store_view_ray(px, vec4<f32>(x.xy, v.xy));
         if (eta != P.texel.w) {
             atomicOr(&view_tiles[pixel_tile(px)], VIEW_TILE_BENT);
         }
     }
     // z of aux: the plane the ray is on, plus one (0 once it has ended); w: η where the ray is
     // (the front of its next segment).
-    view_aux[i] = vec4<f32>(v.z, sample_value(x), 1.0, eta);
-    store_view_color(i, vec4<f32>(0.0));
+    store_view_aux(px, vec4<f32>(v.z, sample_value(x), 1.0, eta));
+    store_view_shade(px, VIEW_COLOR, vec4<f32>(0.0));
     if (MEDIUM) {
-        store_view_medium(i, vec4<f32>(1.0));
+        store_view_shade(px, VIEW_MEDIUM, vec4<f32>(1.0));
     }
 }
 
 // The light at the ray's start on plane 0, once plane 0's light is complete.
 fn view_first_light(px: vec2<u32>) {
-    let i = pixel_index(px);
-    let x = view_position(px, i, 0u);
+    let x = view_position(px, 0u);
+    let value = load_view_aux(px).y;
     var light: vec3<f32>;
     if (SCATTER) {
-        light = spread_seen(0u, x, -primary_dir(vec2<f32>(px)), view_aux[i].y);
+        light = spread_seen(0u, x, -primary_dir(vec2<f32>(px)), value);
     } else if (LBM) {
-        light = lbm_seen(light_at(0u, x).color, -primary_dir(vec2<f32>(px)), view_aux[i].y);
+        light = lbm_seen(light_at(0u, x).color, -primary_dir(vec2<f32>(px)), value);
     } else {
         light = light_at(0u, x).color;
     }
-    store_view_light(i, vec4<f32>(light, 0.0));
+    store_view_shade(px, VIEW_LIGHT, vec4<f32>(light, 0.0));
 }
 
 // h(x) = (1 − e^−x) / x, h(0) = 1: the mean of e^−u over u in [0, x].
@@ -224,51 +223,50 @@ fn left_for_good(p: vec3<f32>, v: vec3<f32>) -> bool {
     return any(below | above);
 }
 
-// A view ray's state between two planes, as the view buffers keep it.
+// A view ray's state between two planes, as `view_rays` and `view_shade` keep it.
 struct ViewRay {
-    aux: vec4<f32>,     // v.z, data value, the plane it is on plus one (0 once ended), η (view_aux)
-    ray: vec4<f32>,     // with refraction: x, y on the plane, v.x, v.y (view_ray)
+    aux: vec4<f32>,     // v.z, data value, the plane it is on plus one (0 once ended), η (VIEW_AUX)
+    ray: vec4<f32>,     // with refraction: x, y on the plane, v.x, v.y (VIEW_RAY)
     color: vec4<f32>,   // composited colour and opacity
     medium: vec3<f32>,  // medium transmittance (MEDIUM)
     light: vec3<f32>,   // light at its position, the front of its next segment
 }
 
-fn load_view(i: u32) -> ViewRay {
+fn load_view(px: vec2<u32>) -> ViewRay {
     var r: ViewRay;
-    r.aux = view_aux[i];
+    r.aux = load_view_aux(px);
     if (REFRACTION) {
-        r.ray = view_ray[i];
+        r.ray = load_view_ray(px);
     }
-    r.color = load_view_color(i);
+    r.color = load_view_shade(px, VIEW_COLOR);
     r.medium = vec3<f32>(1.0);
     if (MEDIUM) {
-        r.medium = load_view_medium(i).rgb;
+        r.medium = load_view_shade(px, VIEW_MEDIUM).rgb;
     }
-    r.light = load_view_light(i).rgb;
+    r.light = load_view_shade(px, VIEW_LIGHT).rgb;
     return r;
 }
 
-fn store_view(i: u32, r: ViewRay) {
-    view_aux[i] = r.aux;
+fn store_view(px: vec2<u32>, r: ViewRay) {
+    store_view_aux(px, r.aux);
     if (REFRACTION) {
-        view_ray[i] = r.ray;
+        store_view_ray(px, r.ray);
     }
-    store_view_color(i, r.color);
+    store_view_shade(px, VIEW_COLOR, r.color);
     if (MEDIUM) {
-        store_view_medium(i, vec4<f32>(r.medium, 1.0));
+        store_view_shade(px, VIEW_MEDIUM, vec4<f32>(r.medium, 1.0));
     }
-    store_view_light(i, vec4<f32>(r.light, 0.0));
+    store_view_shade(px, VIEW_LIGHT, vec4<f32>(r.light, 0.0));
 }
 
 // One segment from plane k-1 to plane k of pixel px's ray (in rect tile `tile`).
 fn view_step(px: vec2<u32>, k: u32, tile: u32) {
-    let i = pixel_index(px);
-    if (view_aux[i].z <= 0.0) {
+    var r = load_view(px);
+    if (r.aux.z <= 0.0) {
         return;
     }
-    var r = load_view(i);
     _ = view_segment(px, k, tile, &r);
-    store_view(i, r);
+    store_view(px, r);
 }
 
 // Whether a view pass may advance its rays over several planes (`view_steps`; `view_planes` in
@@ -283,17 +281,16 @@ fn view_spans_planes() -> bool {
 // The segments from plane k0-1 to plane k1 of pixel px's ray, its state kept in the
 // invocation between them.
 fn view_steps(px: vec2<u32>, k0: u32, k1: u32, tile: u32) {
-    let i = pixel_index(px);
-    if (view_aux[i].z <= 0.0) {
+    var r = load_view(px);
+    if (r.aux.z <= 0.0) {
         return;
     }
-    var r = load_view(i);
     for (var k = k0; k <= k1; k++) {
         if (!view_segment(px, k, tile, &r)) {
             break;
         }
     }
-    store_view(i, r);
+    store_view(px, r);
 }
 
 // The ray ends (it is counted out of its tile).

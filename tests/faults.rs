@@ -45,7 +45,7 @@ fn assert_clean(ctx: &Context) {
 fn out_of_memory_at_f32_retries_at_f16() {
     // The first allocation of a light buffer fails: the render falls back to 16-bit buffers
     // and gives exactly the image an f16 render gives.
-    let ctx = context("oom:view_color");
+    let ctx = context("oom:view_shade");
     let out = render(&ctx, &ball(Precision::F32)).expect("retry at f16 succeeds");
     assert_eq!(out.stats.precision, Precision::F16);
     assert_eq!(out.stats.reductions.len(), 1);
@@ -64,7 +64,7 @@ fn out_of_memory_at_f32_retries_at_f16() {
 
 #[test]
 fn out_of_memory_at_f16_retries_at_lower_resolution() {
-    let ctx = context("oom:view_color");
+    let ctx = context("oom:view_shade");
     let out = render(&ctx, &ball(Precision::F16)).expect("retry at half size succeeds");
     assert_eq!((out.image.width, out.image.height), (SIZE, SIZE));
     assert!(
@@ -78,7 +78,7 @@ fn out_of_memory_at_f16_retries_at_lower_resolution() {
 
 #[test]
 fn persistent_out_of_memory_is_a_clear_error() {
-    let ctx = context("oom-always:view_color");
+    let ctx = context("oom-always:view_shade");
     let err = render(&ctx, &ball(Precision::F32)).err().expect("must fail");
     let RenderError::Gpu(gpu) = &err else {
         panic!("not a GPU error: {err}")
@@ -86,7 +86,7 @@ fn persistent_out_of_memory_is_a_clear_error() {
     assert!(gpu.is_out_of_memory());
     assert!(
         err.to_string()
-            .contains("out of device memory while allocating view_color"),
+            .contains("out of device memory while allocating view_shade"),
         "{err}"
     );
     assert_clean(&ctx);
@@ -173,22 +173,22 @@ fn cli_exit_codes_and_outputs_for_faults() {
             false,
         ),
         (
-            "oom-always:view_color",
+            "oom-always:view_shade",
             &[],
             4,
-            "out of device memory while allocating view_color",
+            "out of device memory while allocating view_shade",
             false,
         ),
         ("lost:1", &[], 4, "device was lost", false),
         ("validation", &[], 4, "validation layer reported 1 error", false),
         (
-            "oom:view_color",
+            "oom:view_shade",
             &["--precision", "f32"],
             0,
             "warn: out of device memory",
             true,
         ),
-        ("oom:view_color", &[], 0, "retrying with resolution 8×8", true),
+        ("oom:view_shade", &[], 0, "retrying with resolution 8×8", true),
     ];
     for (fault, extra, code, message, written) in cases {
         let dir = scratch("cli");

@@ -69,7 +69,7 @@ fn texel_bytes(format: vk::Format) -> u64 {
     match format {
         vk::Format::R16_UNORM => 2,
         vk::Format::R32_SFLOAT => 4,
-        vk::Format::R16G16B16A16_SFLOAT => 8,
+        vk::Format::R16G16B16A16_SFLOAT | vk::Format::R32G32_UINT => 8,
         _ => 16,
     }
 }
@@ -238,7 +238,8 @@ impl Drop for Buffer {
     }
 }
 
-/// Describes an image: 2D when `depth == 1` and `dim3` is false.
+/// Describes an image: 2D when `depth == 1` and `dim3` is false; with `layers` a 2D array of
+/// that many layers (its view a 2D array, as `texture_storage_2d_array` needs).
 #[derive(Clone, Debug)]
 pub struct ImageDesc {
     pub label: String,
@@ -246,6 +247,7 @@ pub struct ImageDesc {
     pub extent: [u32; 3],
     pub dim3: bool,
     pub mip_levels: u32,
+    pub layers: Option<u32>,
     pub usage: vk::ImageUsageFlags,
 }
 
@@ -258,7 +260,22 @@ impl ImageDesc {
             extent: [width, height, 1],
             dim3: false,
             mip_levels: 1,
+            layers: None,
             usage: vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_SRC,
+        }
+    }
+
+    /// A 2D array of `layers` layers that compute shaders write and read back in later
+    /// dispatches (state kept from plane to plane).
+    pub fn storage_2d_array(label: &str, format: vk::Format, width: u32, height: u32, layers: u32) -> Self {
+        ImageDesc {
+            label: label.into(),
+            format,
+            extent: [width, height, 1],
+            dim3: false,
+            mip_levels: 1,
+            layers: Some(layers),
+            usage: vk::ImageUsageFlags::STORAGE,
         }
     }
 
@@ -270,6 +287,7 @@ impl ImageDesc {
             extent,
             dim3,
             mip_levels,
+            layers: None,
             usage: vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_DST,
         }
     }
@@ -293,6 +311,14 @@ impl Image {
             limits.max_image_dimension2_d
         };
         let largest = desc.extent.iter().copied().max().unwrap_or(1);
+        let layers = desc.layers.unwrap_or(1);
+        if layers > limits.max_image_array_layers {
+            return Err(GpuError::Limit {
+                what: format!("{} layers", desc.label),
+                requested: layers as u64,
+                limit: limits.max_image_array_layers as u64,
+            });
+        }
         if largest > limit {
             return Err(GpuError::Limit {
                 what: format!("{} size", desc.label),
@@ -321,14 +347,14 @@ impl Image {
                 depth: desc.extent[2],
             })
             .mip_levels(desc.mip_levels)
-            .array_layers(1)
+            .array_layers(layers)
             .samples(vk::SampleCountFlags::TYPE_1)
             .tiling(vk::ImageTiling::OPTIMAL)
             .usage(desc.usage)
             .sharing_mode(vk::SharingMode::EXCLUSIVE)
             .initial_layout(vk::ImageLayout::UNDEFINED);
         let d = &ctx.device;
-        let bytes = desc.extent.iter().map(|e| *e as u64).product::<u64>() * texel_bytes(desc.format);
+        let bytes = desc.extent.iter().map(|e| *e as u64).product::<u64>() * layers as u64 * texel_bytes(desc.format);
         // Filled in step by step: on an error `Drop` releases what was created (destroying a
         // null handle does nothing).
         let mut image = Image {
@@ -354,6 +380,8 @@ impl Image {
             .image(image.raw)
             .view_type(if desc.dim3 {
                 vk::ImageViewType::TYPE_3D
+            } else if desc.layers.is_some() {
+                vk::ImageViewType::TYPE_2D_ARRAY
             } else {
                 vk::ImageViewType::TYPE_2D
             })
@@ -372,7 +400,7 @@ impl Image {
             base_mip_level: 0,
             level_count: mip_levels,
             base_array_layer: 0,
-            layer_count: 1,
+            layer_count: vk::REMAINING_ARRAY_LAYERS,
         }
     }
 

@@ -10,9 +10,12 @@
 use std::io::IsTerminal;
 use std::sync::Arc;
 
+use ash::vk;
 use glam::Mat4;
 
-use crate::gpu::{Buffer, ComputePipeline, Context, DescriptorSet, GpuError, Recorder, Resource, Timestamps};
+use crate::gpu::{
+    Buffer, ComputePipeline, Context, DescriptorSet, GpuError, Image, ImageDesc, Recorder, Resource, Timestamps,
+};
 
 use super::light_tiles::{self, NEVER};
 use super::shaders::Pass;
@@ -318,11 +321,17 @@ fn progress_bar(show: bool, planes: u64) -> Option<indicatif::ProgressBar> {
     Some(bar)
 }
 
-/// The state buffers of one render, by binding name (`shaders/common.wgsl`); those the scene
-/// does not need are 16-byte placeholders.
+/// The state buffers and images of one render, by binding name (`shaders/common.wgsl`); those
+/// the scene does not need are 16-byte placeholders (1×1 images).
 struct State {
     buffers: Vec<(&'static str, Buffer)>,
-    /// Bytes of the buffers the scene needs (the image excluded).
+    /// The beams' and view rays' state from plane to plane: 2D array images, a texel per beam
+    /// or pixel, so that what a shader reads of it inside a branch (a beam's neighbours, the
+    /// power the view looks up, a ray's own record) is a texel fetch, which a CPU driver
+    /// gathers for all invocations at once; it loads a storage buffer there invocation by
+    /// invocation and component by component.
+    images: Vec<(&'static str, Image)>,
+    /// Bytes of the buffers and images the scene needs (the output image excluded).
     bytes: u64,
 }
 
@@ -341,32 +350,12 @@ impl State {
         let refraction = features.refraction;
         let back_dir = !beams && (refraction || features.intensity_correction);
         let levels = if features.scatter { SCATTER_LEVELS } else { ACC_LEVELS };
-        let sizes: [(&str, u64, bool); 21] = [
-            ("view_light", pixels * rgba, true),
-            ("view_ray", pixels * 16, refraction),
-            ("view_aux", pixels * 16, true),
-            ("view_color", pixels * rgba, true),
-            ("view_medium", pixels * rgba, features.medium),
-            ("beam_pos", 2 * cells * 16, beams && refraction),
-            ("beam_aux", 2 * cells * 16, beams),
-            // Also each beam's power on the planes before (the view reads the unrefracted
-            // beams'; refracted ones deposit theirs a voxel back).
-            (
-                "beam_power",
-                if refraction && layout.back_planes == 1 {
-                    2
-                } else {
-                    2 + front_planes(layout.view_planes, layout.back_planes) as u64
-                } * cells
-                    * rgba,
-                beams,
-            ),
+        let sizes: [(&str, u64, bool); 12] = [
             (
                 "light_acc",
                 LIGHT_RING * pyramid_texels(view.width, view.height, levels) * layout.channels as u64 * 4,
                 deposit_ring(features),
             ),
-            ("beam_scatter", 2 * cells * 48, features.scatter),
             ("back_light", LIGHT_RING * cells * rgba, !beams),
             ("back_dir", LIGHT_RING * cells * 16, back_dir),
             ("image_out", pixels * 16, true),
@@ -388,7 +377,46 @@ impl State {
             }
             buffers.push((name, Buffer::new_storage(ctx, name, size)?));
         }
-        Ok(State { buffers, bytes })
+        // The per-plane state that the shaders read inside branches: images, layers as
+        // `shaders/common.wgsl` describes them. The beams' records: v.z, data value, shadow
+        // depth and plane in the two halves, and with refraction position and v.xy. Their power
+        // by region: the two halves, and each beam's power on the planes before (the view reads
+        // the unrefracted beams'; refracted ones deposit theirs a voxel back), f16 rgb in one
+        // layer each or f32 in two. The spread mode's three texels per beam and half. The view
+        // rays' aux and (with refraction) position and direction; their colour, light and (with
+        // the medium) its transmittance, f16 in one layer each or f32 in two.
+        let regions = if refraction && layout.back_planes == 1 {
+            2
+        } else {
+            2 + front_planes(layout.view_planes, layout.back_planes)
+        };
+        let words = if precision == Precision::F32 { 2 } else { 1 };
+        let grid = [layout.grid.width, layout.grid.height];
+        let pixels_2d = [view.width, view.height];
+        let (rgba32f, rg32u) = (vk::Format::R32G32B32A32_SFLOAT, vk::Format::R32G32_UINT);
+        let image_specs: [(&str, vk::Format, [u32; 2], u32, bool); 5] = [
+            ("beam_state", rgba32f, grid, if refraction { 4 } else { 2 }, beams),
+            ("beam_power", rg32u, grid, regions * words, beams),
+            ("beam_scatter", rgba32f, grid, 6, features.scatter),
+            ("view_rays", rgba32f, pixels_2d, if refraction { 2 } else { 1 }, true),
+            (
+                "view_shade",
+                rg32u,
+                pixels_2d,
+                (2 + u32::from(features.medium)) * words,
+                true,
+            ),
+        ];
+        let mut images = Vec::new();
+        for (name, format, size, layers, needed) in image_specs {
+            let (size, layers) = if needed { (size, layers) } else { ([1, 1], 1) };
+            let image = Image::new(ctx, ImageDesc::storage_2d_array(name, format, size[0], size[1], layers))?;
+            if needed {
+                bytes += image.bytes();
+            }
+            images.push((name, image));
+        }
+        Ok(State { buffers, images, bytes })
     }
 
     fn get(&self, name: &str) -> Result<&Buffer, RenderError> {
@@ -638,6 +666,9 @@ pub(super) fn run(
         for (name, buffer) in &state.buffers {
             writes.push((*name, Resource::Buffer(buffer)));
         }
+        for (name, image) in &state.images {
+            writes.push((*name, Resource::Image(image)));
+        }
         set.write(&writes)?;
         sets.push(set);
     }
@@ -647,6 +678,7 @@ pub(super) fn run(
     if let Some(upload) = pending {
         cached.textures.record_upload(&mut rec, upload);
     }
+    rec.init_layout(&state.images.iter().map(|(_, i)| i).collect::<Vec<_>>());
     rec.fill(state.get("light_acc")?, 0);
     rec.fill(state.get("view_tiles")?, 0);
     rec.fill(state.get("tile_args")?, 0);
