@@ -247,13 +247,19 @@ fn load_view(px: vec2<u32>) -> ViewRay {
     return r;
 }
 
-fn store_view(px: vec2<u32>, r: ViewRay) {
+// Stores the ray's state r, whose state was `before`: the colour and the medium's
+// transmittance only where they changed (they stay put across empty space and clear medium;
+// a CPU driver stores each word of a texel lane by lane, which is most of what a view step
+// costs there). What was loaded is what a store of the same values would write back.
+fn store_view(px: vec2<u32>, r: ViewRay, before: ViewRay) {
     store_view_aux(px, r.aux);
     if (REFRACTION) {
         store_view_ray(px, r.ray);
     }
-    store_view_shade(px, VIEW_COLOR, r.color);
-    if (MEDIUM) {
+    if (any(r.color != before.color)) {
+        store_view_shade(px, VIEW_COLOR, r.color);
+    }
+    if (MEDIUM && any(r.medium != before.medium)) {
         store_view_shade(px, VIEW_MEDIUM, vec4<f32>(r.medium, 1.0));
     }
     store_view_shade(px, VIEW_LIGHT, vec4<f32>(r.light, 0.0));
@@ -261,12 +267,13 @@ fn store_view(px: vec2<u32>, r: ViewRay) {
 
 // One segment from plane k-1 to plane k of pixel px's ray (in rect tile `tile`).
 fn view_step(px: vec2<u32>, k: u32, tile: u32) {
-    var r = load_view(px);
-    if (r.aux.z <= 0.0) {
+    let before = load_view(px);
+    if (before.aux.z <= 0.0) {
         return;
     }
+    var r = before;
     _ = view_segment(px, k, tile, &r);
-    store_view(px, r);
+    store_view(px, r, before);
 }
 
 // Whether a view pass may advance its rays over several planes (`view_steps`; `view_planes` in
@@ -281,16 +288,17 @@ fn view_spans_planes() -> bool {
 // The segments from plane k0-1 to plane k1 of pixel px's ray, its state kept in the
 // invocation between them.
 fn view_steps(px: vec2<u32>, k0: u32, k1: u32, tile: u32) {
-    var r = load_view(px);
-    if (r.aux.z <= 0.0) {
+    let before = load_view(px);
+    if (before.aux.z <= 0.0) {
         return;
     }
+    var r = before;
     for (var k = k0; k <= k1; k++) {
         if (!view_segment(px, k, tile, &r)) {
             break;
         }
     }
-    store_view(px, r);
+    store_view(px, r, before);
 }
 
 // The ray ends (it is counted out of its tile).
