@@ -158,7 +158,7 @@ const VIEW_MEDIUM: u32 = 2u;
 // The beams' rgb power (relative to a plane-0 cell) by region (`load_beam_power`): regions 0
 // and 1 the halves, from 2 on the power before the segment to a plane (`front_power_region`).
 @group(0) @binding(16) var beam_power: texture_storage_2d_array<rg32uint, read_write>;
-// Light deposited on four planes in turn (fixed point, see `ACC_SCALE`).
+// Light deposited on three planes in turn (fixed point, see `ACC_SCALE`).
 @group(0) @binding(17) var<storage, read_write> light_acc: array<atomic<u32>>;
 
 // Backward transport: a ring of three planes of light (rgb; w: shadow depth) and directions

@@ -57,7 +57,7 @@ fn dispatch_refuses_incomplete_or_foreign_sets_and_wrong_immediates() {
     // Refused when writing: an image for the parameter buffer, a name the shader does not
     // declare, an image of another format than the binding's (`out` is rgba16float).
     let mut other = DescriptorSet::new(&gpu.ctx, &init, "mismatch").unwrap();
-    assert!(other.write(&[("P", Resource::Image(&image))]).is_err());
+    assert!(other.write(&[("params", Resource::Image(&image))]).is_err());
     assert!(other.write(&[("no_such_binding", Resource::Image(&image))]).is_err());
     let store = storage_image_pipeline(&gpu);
     let mut stored = DescriptorSet::new(&gpu.ctx, &store, "format mismatch").unwrap();
@@ -67,5 +67,53 @@ fn dispatch_refuses_incomplete_or_foreign_sets_and_wrong_immediates() {
     assert!(err.to_string().contains("immediates"), "{err}");
     // Nothing was recorded, so the (empty) submission is valid.
     rec.submit_and_wait().unwrap();
+    gpu.assert_clean();
+}
+
+/// The beams' and view rays' state lives in 2D array storage images that shaders read and
+/// write in place: each layer is its own texel, and what one dispatch stores the next loads.
+#[test]
+fn array_images_keep_a_texel_per_layer_from_dispatch_to_dispatch() {
+    let gpu = common::Gpu::new();
+    let source = ShaderSource::parse(
+        "layers.wgsl",
+        "@group(0) @binding(0) var img: texture_storage_2d_array<rgba32float, read_write>;\n\
+         @compute @workgroup_size(1) fn write_layers() {\n\
+             for (var l = 0; l < 3; l++) { textureStore(img, vec2<i32>(1, 0), l, vec4<f32>(f32(l + 1))); }\n\
+         }\n\
+         @compute @workgroup_size(1) fn gather() {\n\
+             textureStore(img, vec2<i32>(1, 0), 0, textureLoad(img, vec2<i32>(1, 0), 2) + textureLoad(img, vec2<i32>(1, 0), 1));\n\
+         }",
+    )
+    .unwrap();
+    let write = ComputePipeline::new(&gpu.ctx, "write", &source.specialise("write_layers", &[]).unwrap()).unwrap();
+    let gather = ComputePipeline::new(&gpu.ctx, "gather", &source.specialise("gather", &[]).unwrap()).unwrap();
+    let desc = ImageDesc::storage_2d_array("layers", Format::R32G32B32A32_SFLOAT, 2, 1, 3);
+    let image = Image::new(
+        &gpu.ctx,
+        ImageDesc {
+            usage: desc.usage | ash::vk::ImageUsageFlags::TRANSFER_SRC,
+            ..desc
+        },
+    )
+    .unwrap();
+    let mut sets = Vec::new();
+    for p in [&write, &gather] {
+        let mut set = DescriptorSet::new(&gpu.ctx, p, "layers").unwrap();
+        set.write(&[("img", Resource::Image(&image))]).unwrap();
+        sets.push(set);
+    }
+    let mut readback = Buffer::new_readback(&gpu.ctx, "layer 0", 2 * 16).unwrap();
+    let mut rec = Recorder::new(&gpu.ctx, "layers").unwrap();
+    rec.init_layout(&[&image]);
+    rec.dispatch(&write, &sets[0], &[], [1, 1, 1]).unwrap();
+    rec.compute_to_compute();
+    rec.dispatch(&gather, &sets[1], &[], [1, 1, 1]).unwrap();
+    rec.compute_to_transfer();
+    rec.copy_to_buffer(&image, &mut readback);
+    rec.submit_and_wait().unwrap();
+    let texel: Vec<f32> = bytemuck::cast_slice::<u8, f32>(&readback.read().unwrap()[16..32]).to_vec();
+    // Layers 2 and 1 held 3 and 2: one texel for all layers would have read 3 twice.
+    assert_eq!(texel, vec![5.0; 4]);
     gpu.assert_clean();
 }

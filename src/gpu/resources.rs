@@ -269,13 +269,9 @@ impl ImageDesc {
     /// dispatches (state kept from plane to plane).
     pub fn storage_2d_array(label: &str, format: vk::Format, width: u32, height: u32, layers: u32) -> Self {
         ImageDesc {
-            label: label.into(),
-            format,
-            extent: [width, height, 1],
-            dim3: false,
-            mip_levels: 1,
             layers: Some(layers),
             usage: vk::ImageUsageFlags::STORAGE,
+            ..Self::storage_2d(label, format, width, height)
         }
     }
 
