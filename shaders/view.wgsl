@@ -250,16 +250,18 @@ fn load_view(px: vec2<u32>) -> ViewRay {
 // Stores the ray's state r, whose state was `before`: the colour and the medium's
 // transmittance only where they changed (they stay put across empty space and clear medium;
 // a CPU driver stores each word of a texel lane by lane, which is most of what a view step
-// costs there). What was loaded is what a store of the same values would write back.
+// costs there). What was loaded is what a store of the same values would write back. The
+// comparison is on the bits: a float comparison is false for a NaN, which would then never
+// reach the image and hide the fault that made it.
 fn store_view(px: vec2<u32>, r: ViewRay, before: ViewRay) {
     store_view_aux(px, r.aux);
     if (REFRACTION) {
         store_view_ray(px, r.ray);
     }
-    if (any(r.color != before.color)) {
+    if (any(bitcast<vec4<u32>>(r.color) != bitcast<vec4<u32>>(before.color))) {
         store_view_shade(px, VIEW_COLOR, r.color);
     }
-    if (MEDIUM && any(r.medium != before.medium)) {
+    if (MEDIUM && any(bitcast<vec3<u32>>(r.medium) != bitcast<vec3<u32>>(before.medium))) {
         store_view_shade(px, VIEW_MEDIUM, vec4<f32>(r.medium, 1.0));
     }
     store_view_shade(px, VIEW_LIGHT, vec4<f32>(r.light, 0.0));
