@@ -431,6 +431,12 @@ fn level_offset(m: u32) -> u32 {
     return o;
 }
 
+// The slot of the ring of deposited light (`light_acc`) that plane k deposits onto: P.sweep.z
+// slots, the planes a view pass reads and two more (`deposit_slots` in state.rs).
+fn deposit_slot(k: u32) -> u32 {
+    return k % P.sweep.z;
+}
+
 // Index of the first channel of texel q of level m of light slot `slot`.
 fn acc_texel(slot: u32, m: u32, q: vec2<u32>) -> u32 {
     let channels = P.tiles.w;
@@ -613,7 +619,7 @@ fn deposit_beam(k: u32, b: Beam, w: vec2<f32>, reach: f32, seed: u32) {
     // The beam's cell on this plane, unrefracted (plane-0 pixels scale with depth in
     // perspective).
     let cell = P.beam_origin.z * sqrt(pixel_area(P.plane.x) / pixel_area(b.pos.z));
-    deposit(k % 3u, c, w, min(cell, 1.0), b.power * deposit_scale(b.pos.z, d), d, seed);
+    deposit(deposit_slot(k), c, w, min(cell, 1.0), b.power * deposit_scale(b.pos.z, d), d, seed);
 }
 
 // Beam (i, j) at plane 0: unobstructed light entering the sweep, deposited for the first
@@ -1045,7 +1051,7 @@ fn beams_light_at(k: u32, p: vec3<f32>) -> LightSample {
         return LightSample(budgeted(c), P.light_dir.xyz);
     }
     let t = project(p);
-    let deposited = deposited_at(k % 3u, t);
+    let deposited = deposited_at(deposit_slot(k), t);
     var color = deposited.color;
     var dir = deposited.dir;
     // Unobstructed light where no beam is traced (outside the volume's shadow), box-filtered
@@ -1344,12 +1350,12 @@ fn spread_step(ij: vec2<u32>, index: u32, k: u32, b: Beam, u_before: vec3<f32>, 
     let cell = (dot(pu, pu) + dot(pv, pv)) / 24.0;
     let variance = spread / pixel_area(b.pos.z) + cell;
     let d = P.light_dir.xyz;
-    deposit_cloud(k % 3u, c, variance, scattered * deposit_scale(b.pos.z, d), hash(index ^ hash(k ^ 0x27d4eb2fu)));
+    deposit_cloud(deposit_slot(k), c, variance, scattered * deposit_scale(b.pos.z, d), hash(index ^ hash(k ^ 0x27d4eb2fu)));
 }
 
 // The scattered light on plane k at the view-space point p (fluence relative to the source).
 fn beams_scattered_at(k: u32, p: vec3<f32>) -> vec3<f32> {
-    return deposited_at(k % 3u, project(p)).color;
+    return deposited_at(deposit_slot(k), project(p)).color;
 }
 
 // The light a particle at p on plane k sends into the direction `toward` (unit), relative to

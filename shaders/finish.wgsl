@@ -69,7 +69,7 @@ fn debug_light(k: u32, p: vec2<u32>) -> LightSample {
         // unobstructed light beyond the traced beams.
         var l = LightSample(vec3<f32>(0.0), P.light_dir.xyz);
         if (in_rect(vec2<i32>(p))) {
-            l = deposited_at(k % 3u, vec2<f32>(p));
+            l = deposited_at(deposit_slot(k), vec2<f32>(p));
             if (deposits_direction() && dot(l.dir, l.dir) > 0.0) {
                 l.dir = normalize(l.dir);
             } else {

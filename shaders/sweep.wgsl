@@ -133,8 +133,8 @@ fn tiles_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_in
         return;
     }
     // Rays not bent yet are on their primary lines: empty bricks there can be skipped (with
-    // refraction the bricks also count where η changes).
-    if ((rays & VIEW_TILE_BENT) == 0u) {
+    // refraction the bricks also count where η changes), unless the render steps them all.
+    if ((rays & VIEW_TILE_BENT) == 0u && (P.culling.w & 4u) != 0u) {
         let lo = vec2<f32>(P.rect.xy + vec2<u32>(t % P.tiles.x, t / P.tiles.x) * TILE);
         let last = u32(P.plane.z) - 1u;
         let za = plane_z(min(k - 1u, last));

@@ -279,12 +279,12 @@ fn view_step(px: vec2<u32>, k: u32, tile: u32) {
 }
 
 // Whether a view pass may advance its rays over several planes (`view_steps`; `view_planes` in
-// state.rs): where the light they read is the beams' power kept per plane (beams without
-// refraction, no scattered light in the deposit ring, the image or the medium view). A
-// separate function from `view_step`: a CPU driver runs a loop's control for every plane even
-// when it is one.
+// state.rs): where the light they read stays where the light pass left it (the beams' power
+// kept per plane without refraction, their deposits in a ring of as many slots with it; not
+// the spread mode's scattered light; the image or the medium view). A separate function from
+// `view_step`: a CPU driver runs a loop's control for every plane even when it is one.
 fn view_spans_planes() -> bool {
-    return BEAMS && !REFRACTION && !SCATTER && (DEBUG_VIEW == 0u || DEBUG_VIEW == 4u);
+    return BEAMS && !SCATTER && (DEBUG_VIEW == 0u || DEBUG_VIEW == 4u);
 }
 
 // The segments from plane k0-1 to plane k1 of pixel px's ray, its state kept in the

@@ -35,7 +35,8 @@ pub struct Params {
     /// View tiles in x, view workgroups, workgroups per dispatch row, light channels.
     pub tiles: [u32; 4],
     /// Bricks along x, y, z; bit 0: view tiles are listed per plane (else all are
-    /// dispatched), bit 1: light tiles no view ray can read stop being stepped.
+    /// dispatched), bit 1: light tiles no view ray can read stop being stepped, bit 2: listed
+    /// view tiles whose rays meet no visible brick are skipped.
     pub culling: [u32; 4],
     /// Beams: texture units per view unit along each axis at most (to turn the margin of
     /// `budget.z` into texture coordinates); w: 1 when light tiles are listed per plane (else

@@ -3,9 +3,10 @@
 //! One dispatch per plane k moves the light from plane k-1 to plane k (beams or backward
 //! lookups, on the light grid) and the view rays one plane behind, from k-2 to k-1, so both
 //! ends of a view segment have their light. Light lives in a ring of three planes; view rays
-//! are updated in place. Where the light a view ray reads is the beams' power kept per plane
-//! (no refraction), one view pass advances the rays over several planes
-//! (`Layout::view_planes`), and the power of that many planes is kept.
+//! are updated in place. Where the light a view ray reads stays where the light pass left it
+//! (the beams' power per plane without refraction, their deposits with it), one view pass
+//! advances the rays over several planes (`Layout::view_planes`), and the light of that many
+//! planes is kept.
 
 use std::io::IsTerminal;
 use std::sync::Arc;
@@ -39,12 +40,15 @@ const TEXELS_PER_SUBMIT: u64 = 1 << 24;
 const PIXEL_PLANES_PER_SUBMIT_CANCELLABLE: u32 = 1 << 20;
 /// Planes a view pass advances its rays over where it can take several (`Layout::view_planes`).
 const VIEW_PLANES_PER_PASS: u32 = 8;
-/// Bytes the beams' power of the planes a view pass spans may take: eight planes up to about
-/// 700² pixels, three at 1024² (where the fixed cost per plane matters least).
+/// Bytes the light of the planes a view pass spans may take. The beams' power: eight planes
+/// up to about 700² pixels, three at 1024² (where the fixed cost per plane matters least);
+/// refracted beams' deposits (rgb): eight planes up to 512², four at the viewer's full level
+/// (644×768), one at 1024².
 const VIEW_RING_BYTES: u64 = 48 << 20;
 /// Largest workgroup count along one dispatch axis that every Vulkan device accepts.
 const MAX_GROUPS_PER_ROW: u32 = 65535;
-/// Planes of light kept at once (the ring of `sweep.wgsl`).
+/// Planes of light kept at once (the ring of `sweep.wgsl`) where each view pass reads one; the
+/// backward transport's light, the lists of view tiles.
 const LIGHT_RING: u64 = 3;
 /// Half-width of an index interface for the Fresnel term, in voxels: the gradient volume's
 /// central differences spread a step over two voxels, trilinear sampling over one more.
@@ -81,10 +85,19 @@ struct Layout {
     /// Listed light tiles whose light no view ray still alive can read stop being stepped
     /// (`light_tile_unseen` in beams.wgsl).
     unseen_light_ends: bool,
+    /// Listed view tiles whose rays, not yet bent, meet no visible brick on a pass's planes
+    /// are not stepped (`tiles_main` in sweep.wgsl).
+    skip_empty_view_tiles: bool,
     /// Planes each view pass advances its rays over (`view_main` in sweep.wgsl): several
-    /// where the light they read stays where it was deposited (beams without refraction),
-    /// one otherwise.
+    /// where the light they read stays where the light pass left it (the beams' power kept
+    /// per plane without refraction, their deposits with it), one otherwise.
     view_planes: u32,
+    /// Slots of the ring of deposited light (`light_acc`; `deposit_slot` in beams.wgsl): the
+    /// planes a view pass reads, the one the light pass beside it deposits onto, and the
+    /// next, cleared meanwhile.
+    deposit_slots: u32,
+    /// The beams are refracted (they deposit their light).
+    refraction: bool,
     /// Planes back along its light line from which a view sample reads the beams' power
     /// (`beams_unscattered_through` and `beams_light_through` in beams.wgsl): those in a
     /// voxel.
@@ -104,7 +117,10 @@ impl Layout {
             lists: view_groups <= MAX_GROUPS_PER_ROW,
             light_lists: false,
             unseen_light_ends: true,
+            skip_empty_view_tiles: true,
             view_planes: 1,
+            deposit_slots: LIGHT_RING as u32,
+            refraction: false,
             back_planes: 1,
         }
     }
@@ -123,17 +139,26 @@ fn pyramid_texels(w: u32, h: u32, levels: u32) -> u64 {
         .sum()
 }
 
+/// Bytes of one slot of the ring of deposited light: a plane of the pyramid of `levels`
+/// levels, `channels` words per texel.
+fn pyramid_slot_bytes(view: &ViewSetup, levels: u32, channels: u32) -> u64 {
+    pyramid_texels(view.width, view.height, levels) * channels as u64 * 4
+}
+
 /// Whether the beams deposit their light in the ring `light_acc` (refraction, the spread
 /// mode's scattered light).
 fn deposit_ring(features: &Features) -> bool {
     features.transport == LightTransport::Beams && (features.refraction || features.scatter)
 }
 
-/// Planes of the beams' power before their segment kept at once: those a view pass reads
-/// (its own planes and `back_planes` - 1 before them; refracted beams read their own to
-/// deposit it) and the one the light pass beside it writes.
-fn front_planes(view_planes: u32, back_planes: u32) -> u32 {
-    view_planes + back_planes
+impl Layout {
+    /// Planes of the beams' power before their segment kept at once: those a view pass reads
+    /// (its own planes and `back_planes` - 1 before them) and the one the light pass beside
+    /// it writes; refracted beams read only their own, `back_planes` back, to deposit it.
+    fn front_planes(&self) -> u32 {
+        let read = if self.refraction { 1 } else { self.view_planes };
+        read + self.back_planes
+    }
 }
 
 /// The planes in one voxel at `sample_distance` (voxels per plane), at most 8: how far back
@@ -298,15 +323,12 @@ fn make_params(
             brick_dims[0],
             brick_dims[1],
             brick_dims[2],
-            u32::from(layout.lists) | u32::from(layout.unseen_light_ends) << 1,
+            u32::from(layout.lists)
+                | u32::from(layout.unseen_light_ends) << 1
+                | u32::from(layout.skip_empty_view_tiles) << 2,
         ],
         light_box,
-        sweep: [
-            front_planes(layout.view_planes, layout.back_planes),
-            layout.back_planes,
-            0,
-            0,
-        ],
+        sweep: [layout.front_planes(), layout.back_planes, layout.deposit_slots, 0],
     }
 }
 
@@ -353,7 +375,7 @@ impl State {
         let sizes: [(&str, u64, bool); 12] = [
             (
                 "light_acc",
-                LIGHT_RING * pyramid_texels(view.width, view.height, levels) * layout.channels as u64 * 4,
+                layout.deposit_slots as u64 * pyramid_slot_bytes(view, levels, layout.channels),
                 deposit_ring(features),
             ),
             ("back_light", LIGHT_RING * cells * rgba, !beams),
@@ -388,7 +410,7 @@ impl State {
         let regions = if refraction && layout.back_planes == 1 {
             2
         } else {
-            2 + front_planes(layout.view_planes, layout.back_planes)
+            2 + layout.front_planes()
         };
         let words = if precision == Precision::F32 { 2 } else { 1 };
         let grid = [layout.grid.width, layout.grid.height];
@@ -508,22 +530,34 @@ pub(super) fn run(
         && super::bricks::clear_outside(&prepared.tf)
         && layout.beam_groups <= MAX_GROUPS_PER_ROW;
     layout.unseen_light_ends = !req.keep_unseen_light;
-    // View rays advance over several planes per pass where the light they read is the beams'
-    // power kept per plane (no refraction, no scattered light in the deposit ring; as
-    // `view_spans_planes` in view.wgsl) and their tiles are listed: as many as the power of
-    // `VIEW_RING_BYTES` holds.
+    layout.skip_empty_view_tiles = !req.step_empty_view_tiles;
+    layout.refraction = features.refraction;
+    // View rays advance over several planes per pass where the light they read stays where
+    // the light pass left it (as `view_spans_planes` in view.wgsl: the beams' power kept per
+    // plane without refraction, their deposits with it; not the spread mode's scattered
+    // light) and their tiles are listed: as many as `VIEW_RING_BYTES` of the beams' power
+    // or of deposit slots holds. A pass per plane stores a refracted ray's whole record on
+    // every plane, and a CPU driver stores texels word by word.
     if features.transport == LightTransport::Beams
-        && !features.refraction
         && !features.scatter
         && layout.lists
         && matches!(req.debug_view, DebugView::Image | DebugView::Medium)
     {
-        let plane_bytes = grid.count() * precision.rgba_bytes();
-        let fit = (VIEW_RING_BYTES / plane_bytes.max(1)).saturating_sub(layout.back_planes as u64) as u32;
+        let fit = if features.refraction {
+            // The slots the pass reads, plus the one being deposited onto and the next.
+            let slot_bytes = pyramid_slot_bytes(&view, ACC_LEVELS, layout.channels);
+            (VIEW_RING_BYTES / slot_bytes.max(1)).saturating_sub(2) as u32
+        } else {
+            let plane_bytes = grid.count() * precision.rgba_bytes();
+            (VIEW_RING_BYTES / plane_bytes.max(1)).saturating_sub(layout.back_planes as u64) as u32
+        };
         layout.view_planes = match req.view_planes {
             0 => fit.clamp(1, VIEW_PLANES_PER_PASS),
             n => n,
         };
+        if features.refraction {
+            layout.deposit_slots = (layout.view_planes + 2).max(LIGHT_RING as u32);
+        }
     }
     let window = prepared.window();
     // Scene textures are kept between renders while what they hold is unchanged (an
@@ -698,7 +732,7 @@ pub(super) fn run(
     // Beams that deposit their light (refraction, the spread mode) fill a ring of slots, one
     // per plane: each is cleared before the plane that deposits into it.
     let light_acc = state.get("light_acc")?;
-    let deposit_slot_bytes = deposit_ring(&features).then_some(light_acc.size / LIGHT_RING);
+    let deposit_slot_bytes = deposit_ring(&features).then_some(light_acc.size / layout.deposit_slots as u64);
     let texels_per_plane = (layout.grid.count() + view.rect.width() as u64 * view.rect.height() as u64).max(1);
     let planes_per_submit = (TEXELS_PER_SUBMIT / texels_per_plane).clamp(1, PLANES_PER_SUBMIT as u64) as u32;
     let push = |plane: u32, view_steps: u32, view_list: u32| Immediates {
@@ -802,9 +836,11 @@ pub(super) fn run(
                 last_view = plane;
             }
             if let Some(bytes) = deposit_slot_bytes {
-                // Plane k+1 deposits into the slot plane k-2 used, whose last reader was the
-                // view dispatch of plane k-2 (recorded before this plane's).
-                r.fill_range(light_acc, ((plane as u64 + 1) % LIGHT_RING) * bytes, bytes, 0)?;
+                // Plane k+1 deposits into the slot plane k+1-S used (S slots: the view
+                // planes and two more), whose last reader was a view dispatch before this
+                // plane's (it reads at most `view_planes` planes back from k-1).
+                let slot = (plane as u64 + 1) % layout.deposit_slots as u64;
+                r.fill_range(light_acc, slot * bytes, bytes, 0)?;
             }
             r.compute_to_indirect();
             r.timestamp(&ts, stamps);
