@@ -437,11 +437,10 @@ fn deposit_slot(k: u32) -> u32 {
     return k % P.sweep.z;
 }
 
-// Index of the first channel of texel q of level m of light slot `slot`.
+// Index of the first channel of texel q of level m of light slot `slot` (P.sweep.w: the
+// texels of a plane of the pyramid).
 fn acc_texel(slot: u32, m: u32, q: vec2<u32>) -> u32 {
-    let channels = P.tiles.w;
-    let plane = level_offset(acc_levels());
-    return ((slot * plane + level_offset(m)) + q.y * level_size(m).x + q.x) * channels;
+    return (slot * P.sweep.w + level_offset(m) + q.y * level_size(m).x + q.x) * P.tiles.w;
 }
 
 // Whether texel q of level m covers any pixel of the rect (the only texels cleared and read).
@@ -525,12 +524,8 @@ fn deposit(slot: u32, c: vec2<f32>, w_in: vec2<f32>, w_min: f32, amount: vec3<f3
     }
 }
 
-// Light and direction sums at texel q of level m of light slot `slot` (0 beyond the rect).
-fn acc_load(slot: u32, m: u32, q: vec2<i32>) -> LightSample {
-    if (!level_texel_in_rect(m, q)) {
-        return LightSample(vec3<f32>(0.0), vec3<f32>(0.0));
-    }
-    let texel = acc_texel(slot, m, vec2<u32>(q));
+// Light and direction sums at the texel whose first channel is `texel` (`acc_texel`).
+fn acc_load(texel: u32) -> LightSample {
     var c = vec3<f32>(f32(min(atomicLoad(&light_acc[texel]), ACC_SATURATED)));
     if (MEDIUM) {
         c.g = f32(min(atomicLoad(&light_acc[texel + 1u]), ACC_SATURATED));
@@ -555,9 +550,15 @@ fn acc_load(slot: u32, m: u32, q: vec2<i32>) -> LightSample {
 // rect takes the nearest that does (clamped to the edge): nothing is deposited beyond them,
 // and reading 0 there darkened the light within half a level texel of the rect's edge (a
 // quarter of it along the frame's edges in the light views, where the rect is the frame).
+//
+// Every view sample reads twelve texels here, so the levels' offsets are summed as it goes
+// and the taps need no test: the clamped ones all cover pixels of the rect (a CPU driver runs
+// each loop and branch for every invocation).
 fn deposited_at(slot: u32, t: vec2<f32>) -> LightSample {
     var sum = LightSample(vec3<f32>(0.0), vec3<f32>(0.0));
+    var base = slot * P.sweep.w;
     for (var m = 0u; m < acc_levels(); m++) {
+        let size = level_size(m);
         let s = i32(1u << m);
         let first = vec2<i32>(P.rect.xy) / s;
         let last = (vec2<i32>(P.rect.zw) - vec2<i32>(1)) / s;
@@ -567,10 +568,12 @@ fn deposited_at(slot: u32, t: vec2<f32>) -> LightSample {
         for (var n = 0u; n < 4u; n++) {
             let o = vec2<u32>(n & 1u, n >> 1u);
             let w = select(1.0 - f.x, f.x, o.x == 1u) * select(1.0 - f.y, f.y, o.y == 1u);
-            let l = acc_load(slot, m, clamp(vec2<i32>(lo) + vec2<i32>(o), first, last));
+            let q = vec2<u32>(clamp(vec2<i32>(lo) + vec2<i32>(o), first, last));
+            let l = acc_load((base + q.y * size.x + q.x) * P.tiles.w);
             sum.color += w * l.color;
             sum.dir += w * l.dir;
         }
+        base += size.x * size.y;
     }
     return sum;
 }

@@ -98,6 +98,9 @@ struct Layout {
     deposit_slots: u32,
     /// The beams are refracted (they deposit their light).
     refraction: bool,
+    /// Texels of one plane of the pyramid of deposited light (`ACC_LEVELS` levels, or the
+    /// spread mode's `SCATTER_LEVELS`).
+    pyramid_texels: u64,
     /// Planes back along its light line from which a view sample reads the beams' power
     /// (`beams_unscattered_through` and `beams_light_through` in beams.wgsl): those in a
     /// voxel.
@@ -121,6 +124,7 @@ impl Layout {
             view_planes: 1,
             deposit_slots: LIGHT_RING as u32,
             refraction: false,
+            pyramid_texels: 0,
             back_planes: 1,
         }
     }
@@ -137,12 +141,6 @@ fn pyramid_texels(w: u32, h: u32, levels: u32) -> u64 {
     (0..levels)
         .map(|m| w.div_ceil(1 << m) as u64 * h.div_ceil(1 << m) as u64)
         .sum()
-}
-
-/// Bytes of one slot of the ring of deposited light: a plane of the pyramid of `levels`
-/// levels, `channels` words per texel.
-fn pyramid_slot_bytes(view: &ViewSetup, levels: u32, channels: u32) -> u64 {
-    pyramid_texels(view.width, view.height, levels) * channels as u64 * 4
 }
 
 /// Whether the beams deposit their light in the ring `light_acc` (refraction, the spread
@@ -328,7 +326,12 @@ fn make_params(
                 | u32::from(layout.skip_empty_view_tiles) << 2,
         ],
         light_box,
-        sweep: [layout.front_planes(), layout.back_planes, layout.deposit_slots, 0],
+        sweep: [
+            layout.front_planes(),
+            layout.back_planes,
+            layout.deposit_slots,
+            layout.pyramid_texels as u32,
+        ],
     }
 }
 
@@ -371,11 +374,10 @@ impl State {
         let beams = features.transport == LightTransport::Beams;
         let refraction = features.refraction;
         let back_dir = !beams && (refraction || features.intensity_correction);
-        let levels = if features.scatter { SCATTER_LEVELS } else { ACC_LEVELS };
         let sizes: [(&str, u64, bool); 12] = [
             (
                 "light_acc",
-                layout.deposit_slots as u64 * pyramid_slot_bytes(view, levels, layout.channels),
+                layout.deposit_slots as u64 * layout.pyramid_texels * layout.channels as u64 * 4,
                 deposit_ring(features),
             ),
             ("back_light", LIGHT_RING * cells * rgba, !beams),
@@ -532,6 +534,8 @@ pub(super) fn run(
     layout.unseen_light_ends = !req.keep_unseen_light;
     layout.skip_empty_view_tiles = !req.step_empty_view_tiles;
     layout.refraction = features.refraction;
+    let levels = if features.scatter { SCATTER_LEVELS } else { ACC_LEVELS };
+    layout.pyramid_texels = pyramid_texels(view.width, view.height, levels);
     // View rays advance over several planes per pass where the light they read stays where
     // the light pass left it (as `view_spans_planes` in view.wgsl: the beams' power kept per
     // plane without refraction, their deposits with it; not the spread mode's scattered
@@ -545,7 +549,7 @@ pub(super) fn run(
     {
         let fit = if features.refraction {
             // The slots the pass reads, plus the one being deposited onto and the next.
-            let slot_bytes = pyramid_slot_bytes(&view, ACC_LEVELS, layout.channels);
+            let slot_bytes = layout.pyramid_texels * layout.channels as u64 * 4;
             (VIEW_RING_BYTES / slot_bytes.max(1)).saturating_sub(2) as u32
         } else {
             let plane_bytes = grid.count() * precision.rgba_bytes();
