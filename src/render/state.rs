@@ -136,6 +136,19 @@ pub const ACC_LEVELS: u32 = 3;
 /// Levels of the spread mode's pyramid of scattered light (`SCATTER_LEVELS` in beams.wgsl).
 pub const SCATTER_LEVELS: u32 = 7;
 
+/// A side of a state image holding `n` texels: `n`, or the next side that is not a power of
+/// two. llvmpipe compiles a variant of a shader for each combination of its images' sides
+/// being powers of two or not, on the variant's first dispatch: in the viewer, a light grid
+/// of 64 rows after one of 65 recompiled the light shaders in the middle of a drag (a frame
+/// of 1.3–2.4 s instead of 0.3 s on the CT head). The extra row or column is never read.
+fn image_side(n: u32) -> u32 {
+    let mut side = n.max(1);
+    while side.is_power_of_two() {
+        side += 1;
+    }
+    side
+}
+
 /// Texels of one plane of the deposit pyramid of a `w`×`h` image with `levels` levels.
 fn pyramid_texels(w: u32, h: u32, levels: u32) -> u64 {
     (0..levels)
@@ -434,7 +447,8 @@ impl State {
         let mut images = Vec::new();
         for (name, format, size, layers, needed) in image_specs {
             let (size, layers) = if needed { (size, layers) } else { ([1, 1], 1) };
-            let image = Image::new(ctx, ImageDesc::storage_2d_array(name, format, size[0], size[1], layers))?;
+            let (w, h) = (image_side(size[0]), image_side(size[1]));
+            let image = Image::new(ctx, ImageDesc::storage_2d_array(name, format, w, h, layers))?;
             if needed {
                 bytes += image.bytes();
             }
@@ -946,5 +960,19 @@ mod tests {
         // 64² + 32² + 16² texels.
         assert_eq!(super::pyramid_texels(64, 64, super::ACC_LEVELS), 4096 + 1024 + 256);
         assert_eq!(super::pyramid_texels(5, 3, super::ACC_LEVELS), 15 + 6 + 2);
+    }
+
+    #[test]
+    fn state_image_sides_are_never_powers_of_two() {
+        // Each side holds its texels and is the smallest that is not a power of two.
+        for n in 0..=4100u32 {
+            let side = super::image_side(n);
+            assert!(side >= n.max(1) && !side.is_power_of_two(), "{n} -> {side}");
+            assert!((n.max(1)..side).all(|m| m.is_power_of_two()), "{n} -> {side}");
+        }
+        assert_eq!(
+            (super::image_side(64), super::image_side(65), super::image_side(1)),
+            (65, 65, 3)
+        );
     }
 }
