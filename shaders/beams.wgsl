@@ -510,6 +510,9 @@ fn deposit(slot: u32, c: vec2<f32>, w_in: vec2<f32>, w_min: f32, amount: vec3<f3
     let first = clamp((min(hi, q0 + vec2<f32>(1.0)) - lo) / wl, vec2<f32>(0.0), vec2<f32>(1.0));
     // Level texels hold the light averaged over their s² pixels.
     let a = amount / (s * s);
+    // The level's first texel and row length, once for the four (`acc_texel`).
+    let base = slot * P.sweep.w + level_offset(m);
+    let row = level_size(m).x;
     for (var n = 0u; n < 4u; n++) {
         let o = vec2<u32>(n & 1u, n >> 1u);
         let q = vec2<i32>(q0) + vec2<i32>(o);
@@ -519,7 +522,8 @@ fn deposit(slot: u32, c: vec2<f32>, w_in: vec2<f32>, w_min: f32, amount: vec3<f3
         if (weight > 0.0 && level_texel_in_rect(m, q)) {
             // Unbiased rounding: a deterministic dither per beam and texel.
             let h = hash(seed ^ (u32(q.x) * 73856093u) ^ (u32(q.y) * 19349663u));
-            add_light(acc_texel(slot, m, vec2<u32>(q)), a, weight, direction, f32(h & 0xffffu) / 65536.0);
+            let texel = (base + u32(q.y) * row + u32(q.x)) * P.tiles.w;
+            add_light(texel, a, weight, direction, f32(h & 0xffffu) / 65536.0);
         }
     }
 }
