@@ -137,13 +137,14 @@ pub const ACC_LEVELS: u32 = 3;
 pub const SCATTER_LEVELS: u32 = 7;
 
 /// A side of a state image holding `n` texels: `n`, or the next side that is not a power of
-/// two. llvmpipe compiles a variant of a shader for each combination of its images' sides
-/// being powers of two or not, on the variant's first dispatch: in the viewer, a light grid
-/// of 64 rows after one of 65 recompiled the light shaders in the middle of a drag (a frame
-/// of 1.3–2.4 s instead of 0.3 s on the CT head). The extra row or column is never read.
-fn image_side(n: u32) -> u32 {
+/// two where the device's largest side `max` allows it. llvmpipe compiles a variant of a
+/// shader for each combination of its images' sides being powers of two or not, on the
+/// variant's first dispatch: in the viewer, a light grid of 64 rows after one of 65
+/// recompiled the light shaders in the middle of a drag (a frame of 1.3–2.4 s instead of
+/// 0.3 s on the CT head). The extra row or column is never read.
+fn image_side(n: u32, max: u32) -> u32 {
     let mut side = n.max(1);
-    while side.is_power_of_two() {
+    while side.is_power_of_two() && side < max {
         side += 1;
     }
     side
@@ -447,7 +448,8 @@ impl State {
         let mut images = Vec::new();
         for (name, format, size, layers, needed) in image_specs {
             let (size, layers) = if needed { (size, layers) } else { ([1, 1], 1) };
-            let (w, h) = (image_side(size[0]), image_side(size[1]));
+            let max = ctx.limits().max_image_dimension2_d;
+            let (w, h) = (image_side(size[0], max), image_side(size[1], max));
             let image = Image::new(ctx, ImageDesc::storage_2d_array(name, format, w, h, layers))?;
             if needed {
                 bytes += image.bytes();
@@ -964,15 +966,23 @@ mod tests {
 
     #[test]
     fn state_image_sides_are_never_powers_of_two() {
-        // Each side holds its texels and is the smallest that is not a power of two.
-        for n in 0..=4100u32 {
-            let side = super::image_side(n);
-            assert!(side >= n.max(1) && !side.is_power_of_two(), "{n} -> {side}");
+        // Each side holds its texels and is the smallest that is not a power of two, up to the
+        // device's largest side, which stays as it is.
+        let max = 16384;
+        for n in (0..=4100u32).chain(16370..=max) {
+            let side = super::image_side(n, max);
+            assert!(side >= n.max(1) && side <= max.max(n), "{n} -> {side}");
+            assert!(!side.is_power_of_two() || side == max, "{n} -> {side}");
             assert!((n.max(1)..side).all(|m| m.is_power_of_two()), "{n} -> {side}");
         }
         assert_eq!(
-            (super::image_side(64), super::image_side(65), super::image_side(1)),
+            (
+                super::image_side(64, max),
+                super::image_side(65, max),
+                super::image_side(1, max)
+            ),
             (65, 65, 3)
         );
+        assert_eq!(super::image_side(max, max), max);
     }
 }
