@@ -437,10 +437,21 @@ fn deposit_slot(k: u32) -> u32 {
     return k % P.sweep.z;
 }
 
-// Index of the first channel of texel q of level m of light slot `slot` (P.sweep.w: the
-// texels of a plane of the pyramid).
+// The first texel of level m of light slot `slot` (P.sweep.w: the texels of a plane of the
+// pyramid).
+fn level_base(slot: u32, m: u32) -> u32 {
+    return slot * P.sweep.w + level_offset(m);
+}
+
+// Index of the first channel of texel q of the level that starts at texel `base` and has rows
+// of `row` texels.
+fn level_texel(base: u32, row: u32, q: vec2<u32>) -> u32 {
+    return (base + q.y * row + q.x) * P.tiles.w;
+}
+
+// Index of the first channel of texel q of level m of light slot `slot`.
 fn acc_texel(slot: u32, m: u32, q: vec2<u32>) -> u32 {
-    return (slot * P.sweep.w + level_offset(m) + q.y * level_size(m).x + q.x) * P.tiles.w;
+    return level_texel(level_base(slot, m), level_size(m).x, q);
 }
 
 // Whether texel q of level m covers any pixel of the rect (the only texels cleared and read).
@@ -510,8 +521,8 @@ fn deposit(slot: u32, c: vec2<f32>, w_in: vec2<f32>, w_min: f32, amount: vec3<f3
     let first = clamp((min(hi, q0 + vec2<f32>(1.0)) - lo) / wl, vec2<f32>(0.0), vec2<f32>(1.0));
     // Level texels hold the light averaged over their s² pixels.
     let a = amount / (s * s);
-    // The level's first texel and row length, once for the four (`acc_texel`).
-    let base = slot * P.sweep.w + level_offset(m);
+    // The level's first texel and row length, once for the four.
+    let base = level_base(slot, m);
     let row = level_size(m).x;
     for (var n = 0u; n < 4u; n++) {
         let o = vec2<u32>(n & 1u, n >> 1u);
@@ -522,13 +533,12 @@ fn deposit(slot: u32, c: vec2<f32>, w_in: vec2<f32>, w_min: f32, amount: vec3<f3
         if (weight > 0.0 && level_texel_in_rect(m, q)) {
             // Unbiased rounding: a deterministic dither per beam and texel.
             let h = hash(seed ^ (u32(q.x) * 73856093u) ^ (u32(q.y) * 19349663u));
-            let texel = (base + u32(q.y) * row + u32(q.x)) * P.tiles.w;
-            add_light(texel, a, weight, direction, f32(h & 0xffffu) / 65536.0);
+            add_light(level_texel(base, row, vec2<u32>(q)), a, weight, direction, f32(h & 0xffffu) / 65536.0);
         }
     }
 }
 
-// Light and direction sums at the texel whose first channel is `texel` (`acc_texel`).
+// Light and direction sums at the texel whose first channel is `texel` (`level_texel`).
 fn acc_load(texel: u32) -> LightSample {
     var c = vec3<f32>(f32(min(atomicLoad(&light_acc[texel]), ACC_SATURATED)));
     if (MEDIUM) {
@@ -573,7 +583,7 @@ fn deposited_at(slot: u32, t: vec2<f32>) -> LightSample {
             let o = vec2<u32>(n & 1u, n >> 1u);
             let w = select(1.0 - f.x, f.x, o.x == 1u) * select(1.0 - f.y, f.y, o.y == 1u);
             let q = vec2<u32>(clamp(vec2<i32>(lo) + vec2<i32>(o), first, last));
-            let l = acc_load((base + q.y * size.x + q.x) * P.tiles.w);
+            let l = acc_load(level_texel(base, size.x, q));
             sum.color += w * l.color;
             sum.dir += w * l.dir;
         }

@@ -446,9 +446,9 @@ impl State {
             ),
         ];
         let mut images = Vec::new();
+        let max = ctx.limits().max_image_dimension2_d;
         for (name, format, size, layers, needed) in image_specs {
             let (size, layers) = if needed { (size, layers) } else { ([1, 1], 1) };
-            let max = ctx.limits().max_image_dimension2_d;
             let (w, h) = (image_side(size[0], max), image_side(size[1], max));
             let image = Image::new(ctx, ImageDesc::storage_2d_array(name, format, w, h, layers))?;
             if needed {
@@ -576,7 +576,7 @@ pub(super) fn run(
             n => n,
         };
         if features.refraction {
-            layout.deposit_slots = (layout.view_planes + 2).max(LIGHT_RING as u32);
+            layout.deposit_slots = layout.view_planes + 2;
         }
     }
     let window = prepared.window();
