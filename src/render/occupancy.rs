@@ -142,7 +142,11 @@ fn dilate(flags: &[bool], size: [usize; 3], axis: usize, d: usize) -> Vec<bool> 
     let stride = [1, size[0], size[0] * size[1]][axis];
     let n = size[axis];
     let mut out = vec![false; flags.len()];
-    for start in (0..flags.len()).filter(|&i| (i / stride) % n == 0) {
+    // Each line's first cell: every `stride`-th run of `stride` cells in each block of n lines.
+    let starts = (0..flags.len())
+        .step_by(stride * n)
+        .flat_map(|block| block..block + stride);
+    for start in starts {
         let mut last = None;
         for i in 0..n {
             if flags[start + i * stride] {
