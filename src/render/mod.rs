@@ -32,6 +32,8 @@ use std::collections::HashMap;
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
+use rayon::prelude::*;
+
 use crate::gpu::{ComputePipeline, Context, GpuError, MemoryUse, ShaderSource};
 use crate::scene::{Environment, Precision, SceneError};
 
@@ -208,37 +210,51 @@ impl Renderer {
         &self.ctx
     }
 
-    fn pipeline(
+    /// The sweep's pipelines for these passes, in their order: those not built before are
+    /// specialised, then compiled side by side. Compiling is most of a render's setup on a CPU
+    /// driver, which turns each pipeline into machine code when it is created (the CT head's
+    /// seven take about half a second on lavapipe), and the pipelines are independent.
+    fn pipelines<const N: usize>(
         &mut self,
-        pass: Pass,
+        passes: [Pass; N],
         precision: Precision,
         features: Features,
         debug: DebugView,
         safeguards_off: u32,
-    ) -> Result<Arc<ComputePipeline>, RenderError> {
-        let key = (pass, precision, features, debug, safeguards_off);
-        if let Some(p) = self.pipelines.get(&key) {
-            return Ok(p.clone());
+    ) -> Result<[Arc<ComputePipeline>; N], RenderError> {
+        let key = |pass: Pass| (pass, precision, features, debug, safeguards_off);
+        let mut missing = Vec::new();
+        for pass in passes {
+            if self.pipelines.contains_key(&key(pass)) || missing.iter().any(|(p, _, _)| *p == pass) {
+                continue;
+            }
+            let source = match self.sources.entry(pass.file()) {
+                std::collections::hash_map::Entry::Occupied(e) => e.into_mut(),
+                std::collections::hash_map::Entry::Vacant(e) => e.insert(pass.parse()?),
+            };
+            let mut constants = features.constants(debug, precision);
+            for c in constants.iter_mut().filter(|c| c.0 == "SAFEGUARDS_OFF") {
+                c.1 = safeguards_off as f64;
+            }
+            let compiled = source.specialise(pass.entry(), &constants)?;
+            let label = format!(
+                "{}:{} [{} {}]",
+                pass.file(),
+                pass.entry(),
+                features.describe(),
+                precision.name()
+            );
+            missing.push((pass, label, compiled));
         }
-        let source = match self.sources.entry(pass.file()) {
-            std::collections::hash_map::Entry::Occupied(e) => e.into_mut(),
-            std::collections::hash_map::Entry::Vacant(e) => e.insert(pass.parse()?),
-        };
-        let mut constants = features.constants(debug, precision);
-        for c in constants.iter_mut().filter(|c| c.0 == "SAFEGUARDS_OFF") {
-            c.1 = safeguards_off as f64;
+        let ctx = &self.ctx;
+        let built = missing
+            .par_iter()
+            .map(|(_, label, compiled)| ComputePipeline::new(ctx, label, compiled))
+            .collect::<Result<Vec<_>, _>>()?;
+        for ((pass, _, _), p) in missing.iter().zip(built) {
+            self.pipelines.insert(key(*pass), Arc::new(p));
         }
-        let compiled = source.specialise(pass.entry(), &constants)?;
-        let label = format!(
-            "{}:{} [{} {}]",
-            pass.file(),
-            pass.entry(),
-            features.describe(),
-            precision.name()
-        );
-        let p = Arc::new(ComputePipeline::new(&self.ctx, &label, &compiled)?);
-        self.pipelines.insert(key, p.clone());
-        Ok(p)
+        Ok(passes.map(|pass| self.pipelines[&key(pass)].clone()))
     }
 
     /// Renders one image (or a debug buffer) of `prepared`.
@@ -293,15 +309,21 @@ impl Renderer {
     ) -> Result<RenderOutput, RenderError> {
         let features = prepared.features();
         let off = req.safeguards_off;
-        let pipelines = [
-            self.pipeline(Pass::Init, precision, features, req.debug_view, off)?,
-            self.pipeline(Pass::Light, precision, features, req.debug_view, off)?,
-            self.pipeline(Pass::View, precision, features, req.debug_view, off)?,
-            self.pipeline(Pass::Tiles, precision, features, req.debug_view, off)?,
-            self.pipeline(Pass::Finish, precision, features, req.debug_view, off)?,
-            self.pipeline(Pass::LightListed, precision, features, req.debug_view, off)?,
-            self.pipeline(Pass::LightEdge, precision, features, req.debug_view, off)?,
-        ];
+        let pipelines = self.pipelines(
+            [
+                Pass::Init,
+                Pass::Light,
+                Pass::View,
+                Pass::Tiles,
+                Pass::Finish,
+                Pass::LightListed,
+                Pass::LightEdge,
+            ],
+            precision,
+            features,
+            req.debug_view,
+            off,
+        )?;
         if features.lbm && self.lbm.is_none() {
             self.lbm = Some(lbm::Pipelines::new(&self.ctx)?);
         }
