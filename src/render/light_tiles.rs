@@ -56,8 +56,10 @@ pub fn texture_scale(view: &ViewSetup) -> [f32; 3] {
 /// (the plane from which `list_light_tile` steps it); and the last plane on which one of its
 /// beams is in one (0 if none). Beams bend only in occupied cells, so before the first of
 /// those planes every beam of the tile is still on its straight line, and without refraction
-/// after the last its light no longer changes.
-pub fn spans(view: &ViewSetup, grid: &BeamGrid, light: glam::Vec3, grown: &[Grown]) -> Vec<[u32; 4]> {
+/// after the last its light no longer changes. Without `last` (bent beams, whose end the
+/// device finds) the last plane is left 0 and each line is traversed only to the first
+/// occupied cell it meets.
+pub fn spans(view: &ViewSetup, grid: &BeamGrid, light: glam::Vec3, grown: &[Grown], last: bool) -> Vec<[u32; 4]> {
     let (tx, ty) = (
         grid.width.div_ceil(Pass::TILE) as usize,
         grid.height.div_ceil(Pass::TILE) as usize,
@@ -78,9 +80,13 @@ pub fn spans(view: &ViewSetup, grid: &BeamGrid, light: glam::Vec3, grown: &[Grow
                 let ndc = glam::Vec2::new((e.x - cx) / fx, (e.y - cy) / fy);
                 let scale = if view.perspective { view.z_first } else { 1.0 };
                 let q0 = volume_from_view.transform_point3(glam::Vec3::new(ndc.x * scale, ndc.y * scale, view.z_first));
+                let t = &mut row[i as usize / Pass::TILE as usize];
                 for g in grown {
-                    if let Some((s0, s1)) = g.span(q0, dq, 0.0, span) {
-                        let t = &mut row[i as usize / Pass::TILE as usize];
+                    if !last {
+                        if let Some(s0) = g.entry(q0, dq, 0.0, span) {
+                            t.0 = t.0.min(((s0 / view.step).floor() as u32).max(1));
+                        }
+                    } else if let Some((s0, s1)) = g.span(q0, dq, 0.0, span) {
                         t.0 = t.0.min(((s0 / view.step).floor() as u32).max(1));
                         t.1 = t.1.max((s1 / view.step).ceil() as u32);
                     }
@@ -153,7 +159,13 @@ mod tests {
                 })
             })
         };
-        let spans = spans(&view, &grid, light, &[occupancy.grown(margin)]);
+        let spans = spans(&view, &grid, light, &[occupancy.grown(margin)], true);
+        // Without the last planes (bent beams) each line stops at its first occupied cell:
+        // the first planes are the same.
+        let firsts = super::spans(&view, &grid, light, &[occupancy.grown(margin)], false);
+        for (a, b) in spans.iter().zip(&firsts) {
+            assert_eq!((a[0], a[1], 0), (b[0], b[1], b[2]), "{a:?} against {b:?}");
+        }
         let tx = grid.width.div_ceil(Pass::TILE) as usize;
         let volume_from_view = view.volume_from_view();
         let (mut later, mut earlier) = (0, 0);

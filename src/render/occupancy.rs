@@ -241,6 +241,17 @@ impl Grown {
     /// through occupied cells: from where it enters the first to where it leaves the last
     /// (cells traversed exactly, Amanatides and Woo), or None.
     pub fn span(&self, q0: glam::Vec3, dq: glam::Vec3, s0: f32, s1: f32) -> Option<(f32, f32)> {
+        self.traverse(q0, dq, s0, s1, false)
+    }
+
+    /// Where the line q0 + dq·s, s in [s0, s1], enters its first occupied cell, or None: the
+    /// first value of [`Grown::span`], without traversing the cells beyond that one.
+    pub fn entry(&self, q0: glam::Vec3, dq: glam::Vec3, s0: f32, s1: f32) -> Option<f32> {
+        self.traverse(q0, dq, s0, s1, true).map(|(first, _)| first)
+    }
+
+    /// [`Grown::span`], stopping at the first occupied cell with `first_only`.
+    fn traverse(&self, q0: glam::Vec3, dq: glam::Vec3, s0: f32, s1: f32, first_only: bool) -> Option<(f32, f32)> {
         // Grid coordinates: cell c spans [c, c + 1) along each axis.
         let a = [0, 1, 2].map(|i| q0[i] * self.per_unit[i] + self.offset[i] as f32);
         let b = [0, 1, 2].map(|i| dq[i] * self.per_unit[i]);
@@ -285,6 +296,9 @@ impl Grown {
             let leave = next[axis].min(t1);
             if self.flags[(cell[2] * self.size[1] + cell[1]) * self.size[0] + cell[0]] {
                 found = Some((found.map_or(t, |f| f.0), leave));
+                if first_only {
+                    break;
+                }
             }
             if next[axis] >= t1 {
                 break;

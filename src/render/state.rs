@@ -624,11 +624,10 @@ pub(super) fn run(
         // The occupied cells grown by what a view sample reads and a straight beam's deposit
         // reach (`straight`).
         let grown = cached.grown(scale.map(|s| s * straight));
-        let mut spans = light_tiles::spans(&view, &grid, light, &grown);
+        // Bent beams end where the device finds they can no longer reach the box
+        // (`light_alive`); the straight lines' last planes do not bound them.
+        let spans = light_tiles::spans(&view, &grid, light, &grown, !features.refraction);
         if features.refraction {
-            // Bent beams end where the device finds they can no longer reach the box
-            // (`light_alive`); the straight lines' last planes do not bound them.
-            spans.iter_mut().for_each(|s| s[2] = 0);
             // A beam deposits only where a view sample can read it: in those cells; a beam
             // whose deposit reaches further (spread by refraction) always deposits.
             if let Some((first, others)) = grown.split_first() {
