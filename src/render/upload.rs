@@ -35,6 +35,8 @@ pub struct SceneTextures {
     /// Where the light can change, on the CPU (`occupancy.rs`): the cells where particles
     /// absorb or show, and with refraction those where η changes.
     pub occupancy: Vec<Occupancy>,
+    /// The tables' texels for the sample distances used last (`replace_tables`).
+    kept_tables: Vec<TableTexels>,
 }
 
 /// The contents of freshly created [`SceneTextures`], staged for [`SceneTextures::record_upload`].
@@ -72,26 +74,44 @@ impl Staging {
     }
 }
 
-/// The pre-integrated particle and medium tables for `sample_distance`, created and staged:
-/// (image, staging offset) each, in that order.
-fn tables(
-    ctx: &Arc<Context>,
-    tf: &TransferFunctions,
+/// The pre-integrated particle and medium tables for one sample distance, as the 16-bit
+/// texels their images hold.
+struct TableTexels {
     sample_distance: f32,
-    staging: &mut Staging,
-) -> Result<[(Image, u64); 2], GpuError> {
-    let tables = preintegrate(tf, sample_distance);
+    particle: Vec<u8>,
+    medium: Vec<u8>,
+}
+
+impl TableTexels {
+    fn new(tf: &TransferFunctions, sample_distance: f32) -> TableTexels {
+        let tables = preintegrate(tf, sample_distance);
+        let texels = |data: &[[f32; 4]]| halves(data.iter().flatten().copied());
+        TableTexels {
+            sample_distance,
+            particle: texels(&tables.particle),
+            medium: texels(&tables.medium),
+        }
+    }
+}
+
+/// Table texels kept per sample distance: the viewer's levels use three, and pre-integrating
+/// takes tens of ms at each change of level.
+const KEPT_TABLES: usize = 4;
+
+/// The particle and medium table images for `texels`, created and staged: (image, staging
+/// offset) each, in that order.
+fn tables(ctx: &Arc<Context>, texels: &TableTexels, staging: &mut Staging) -> Result<[(Image, u64); 2], GpuError> {
     let n = TABLE_SIZE as u32;
-    let mut table = |label: &str, data: &[[f32; 4]]| -> Result<(Image, u64), GpuError> {
+    let mut table = |label: &str, data: &[u8]| -> Result<(Image, u64), GpuError> {
         let img = Image::new(
             ctx,
             ImageDesc::sampled(label, Format::R16G16B16A16_SFLOAT, [n, n, 1], false, 1),
         )?;
-        Ok((img, staging.push(&halves(data.iter().flatten().copied()))))
+        Ok((img, staging.push(data)))
     };
     Ok([
-        table("particle table", &tables.particle)?,
-        table("medium table", &tables.medium)?,
+        table("particle table", &texels.particle)?,
+        table("medium table", &texels.medium)?,
     ])
 }
 
@@ -165,7 +185,8 @@ impl SceneTextures {
         ));
         images.push(img);
 
-        for (img, offset) in tables(ctx, tf, sample_distance, &mut staging)? {
+        let table_texels = TableTexels::new(tf, sample_distance);
+        for (img, offset) in tables(ctx, &table_texels, &mut staging)? {
             uploads.push((images.len(), vec![(offset, img.desc.extent)]));
             images.push(img);
         }
@@ -247,6 +268,7 @@ impl SceneTextures {
             bricks,
             brick_dims: occupancy.dims,
             occupancy: cells,
+            kept_tables: vec![table_texels],
         };
         let pending = PendingUpload {
             staging: Arc::new(buffer),
@@ -265,7 +287,20 @@ impl SceneTextures {
         sample_distance: f32,
     ) -> Result<PendingUpload, GpuError> {
         let mut staging = Staging::default();
-        let [(particle, p), (medium, m)] = tables(ctx, tf, sample_distance, &mut staging)?;
+        let kept = self
+            .kept_tables
+            .iter()
+            .position(|t| t.sample_distance.to_bits() == sample_distance.to_bits());
+        let texels = match kept {
+            Some(i) => self.kept_tables.remove(i),
+            None => TableTexels::new(tf, sample_distance),
+        };
+        let [(particle, p), (medium, m)] = tables(ctx, &texels, &mut staging)?;
+        // The most recently used last; the oldest goes.
+        self.kept_tables.push(texels);
+        if self.kept_tables.len() > KEPT_TABLES {
+            self.kept_tables.remove(0);
+        }
         self.particle_table = particle;
         self.medium_table = medium;
         // Their places in the order `record_upload` indexes.
