@@ -707,6 +707,36 @@ fn close_button_during_refinement_shuts_down_cleanly() {
         !stderr.contains("frame: full"),
         "closed before the full frame:\n{stderr}"
     );
+    // Each frame's line is followed by what the device spent of it, by pass: within the
+    // frame's time, and the passes add up to it (five numbers rounded to 0.1 ms).
+    let lines: Vec<&str> = stderr.lines().collect();
+    let at = lines
+        .iter()
+        .position(|l| l.starts_with("frame: interactive"))
+        .expect("a frame line");
+    let numbers = |l: &str| -> Vec<f64> {
+        l.split(|c: char| !(c.is_ascii_digit() || c == '.'))
+            .filter_map(|w| w.parse().ok())
+            .collect()
+    };
+    let frame_ms = *numbers(lines[at]).last().unwrap();
+    let gpu = lines.get(at + 1).copied().unwrap_or_default();
+    assert!(gpu.starts_with("gpu: "), "no GPU line after the frame's:\n{stderr}");
+    let g = numbers(gpu);
+    assert_eq!(g.len(), 6, "{gpu}");
+    assert!(
+        g[0] > 0.0 && g[0] <= frame_ms,
+        "GPU {} ms of a {frame_ms} ms frame",
+        g[0]
+    );
+    assert!(
+        (g[1] + g[2] + g[3] + g[4] - g[0]).abs() <= 0.3,
+        "passes do not add up: {gpu}"
+    );
+    assert!(
+        (g[0] + g[5] - frame_ms).abs() <= 0.2,
+        "GPU and other are not the frame: {gpu}"
+    );
     drop(x);
     std::fs::remove_dir_all(&dir).unwrap();
 }

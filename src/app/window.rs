@@ -141,6 +141,14 @@ impl App {
                                 "frame: {:<11} {}x{} {:>4} planes {:>9.1} ms",
                                 name, image.width, image.height, stats.planes, duration_ms
                             );
+                            // What the device spent of it, by pass; the rest is the CPU's
+                            // (scene setup, recording, waiting) and the copy back.
+                            let [light, view, listing, finish] = stats.pass_ms;
+                            eprintln!(
+                                "gpu: {:.1} ms (light {light:.1}, view {view:.1}, listing {listing:.1}, finish {finish:.1}), other {:.1} ms",
+                                stats.gpu_ms,
+                                duration_ms - stats.gpu_ms
+                            );
                         }
                         if self.opts.orbit_frames > 0 {
                             self.opts.orbit_frames -= 1;
