@@ -103,6 +103,10 @@ pub fn preintegrate(tf: &TransferFunctions, sample_distance: f32) -> Preintegrat
     let whole: Vec<Vec<f32>> = (0..n)
         .into_par_iter()
         .map(|d| {
+            if d == 0 {
+                // A constant value: `entry` takes its cell at once.
+                return Vec::new();
+            }
             let per_unit = segment_per_cell(sample_distance, d);
             cells.iter().map(|c| 1.0 - (-c.tau_a * per_unit).exp()).collect()
         })
@@ -134,7 +138,7 @@ pub fn preintegrate(tf: &TransferFunctions, sample_distance: f32) -> Preintegrat
 }
 
 /// The length (voxels) a segment of `length` voxels from value f/(n−1) to b/(n−1) spends in
-/// each fine cell it crosses whole, d = |b − f| > 0 (infinite for d = 0).
+/// each fine cell it crosses whole, d = |b − f| > 0.
 fn segment_per_cell(length: f32, d: usize) -> f32 {
     length * (TABLE_SIZE - 1) as f32 / (d as f32 * FINE_CELLS as f32)
 }
