@@ -309,21 +309,8 @@ impl Renderer {
     ) -> Result<RenderOutput, RenderError> {
         let features = prepared.features();
         let off = req.safeguards_off;
-        let pipelines = self.pipelines(
-            [
-                Pass::Init,
-                Pass::Light,
-                Pass::View,
-                Pass::Tiles,
-                Pass::Finish,
-                Pass::LightListed,
-                Pass::LightEdge,
-            ],
-            precision,
-            features,
-            req.debug_view,
-            off,
-        )?;
+        // In the order `state::run` indexes them.
+        let pipelines = self.pipelines(Pass::ALL, precision, features, req.debug_view, off)?;
         if features.lbm && self.lbm.is_none() {
             self.lbm = Some(lbm::Pipelines::new(&self.ctx)?);
         }
