@@ -82,11 +82,13 @@ pub fn spans(view: &ViewSetup, grid: &BeamGrid, light: glam::Vec3, grown: &[Grow
                 let q0 = volume_from_view.transform_point3(glam::Vec3::new(ndc.x * scale, ndc.y * scale, view.z_first));
                 let t = &mut row[i as usize / Pass::TILE as usize];
                 for g in grown {
-                    if !last {
-                        if let Some(s0) = g.entry(q0, dq, 0.0, span) {
-                            t.0 = t.0.min(((s0 / view.step).floor() as u32).max(1));
-                        }
-                    } else if let Some((s0, s1)) = g.span(q0, dq, 0.0, span) {
+                    // Without `last`, an end of 0 leaves the last plane at 0.
+                    let hit = if last {
+                        g.span(q0, dq, 0.0, span)
+                    } else {
+                        g.entry(q0, dq, 0.0, span).map(|s0| (s0, 0.0))
+                    };
+                    if let Some((s0, s1)) = hit {
                         t.0 = t.0.min(((s0 / view.step).floor() as u32).max(1));
                         t.1 = t.1.max((s1 / view.step).ceil() as u32);
                     }
