@@ -729,10 +729,12 @@ fn close_button_during_refinement_shuts_down_cleanly() {
         "GPU {} ms of a {frame_ms} ms frame",
         g[0]
     );
+    // Five numbers each rounded to 0.1 ms: at most 5 × 0.05 apart.
     assert!(
         (g[1] + g[2] + g[3] + g[4] - g[0]).abs() <= 0.3,
         "passes do not add up: {gpu}"
     );
+    // Three numbers each rounded to 0.1 ms: at most 3 × 0.05 apart.
     assert!(
         (g[0] + g[5] - frame_ms).abs() <= 0.2,
         "GPU and other are not the frame: {gpu}"
