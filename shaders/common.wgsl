@@ -129,6 +129,10 @@ var<private> P: Params;
 // ∇η (xyz, η per volume texel, central differences of η_tf applied per voxel) and η − η
 // outside the volume (w), so that the zero border is the ambient medium.
 @group(0) @binding(4) var gradient_tex: texture_3d<f32>;
+// The value's gradient per volume texel (central differences over the interface half-width
+// along the volume's axes, per voxel, in units of 1/32767; w 0): the view's layers
+// (`layer_ratio`).
+@group(0) @binding(7) var orientation_tex: texture_3d<f32>;
 @group(0) @binding(5) var particle_table: texture_2d<f32>;   // rgb: premultiplied colour, a: τ_α
 @group(0) @binding(6) var medium_table: texture_2d<f32>;     // rgb: τ_m
 @group(0) @binding(8) var env_tex: texture_2d<f32>;

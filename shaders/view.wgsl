@@ -117,11 +117,12 @@ fn segment_light(l0: vec3<f32>, l1: vec3<f32>, alpha: f32, layer: f32) -> vec3<f
 
 // How much faster the light falls than the view's transmittance in a layered medium (a
 // surface, a sheet) around p: |n·v| / |n·l| for the layer's normal n, the value's gradient
-// from central differences over the interface half-width (the same reach along every axis,
-// so that a profile that curves within it tilts n no more than it shortens it). Negative
-// where the value does not change (no layer to orient).
+// from central differences over the interface half-width (the same reach along every axis),
+// one fetch of the orientation volume (render/layers.rs). Negative where the value does not
+// change (no layer to orient).
 fn layer_ratio(p: vec3<f32>, dir: vec3<f32>) -> f32 {
-    let g = value_gradient(p, P.budget.y);
+    let m = mat3x3<f32>(P.gradient_to_view[0].xyz, P.gradient_to_view[1].xyz, P.gradient_to_view[2].xyz);
+    let g = m * textureSampleLevel(orientation_tex, volume_sampler, volume_coord(p), 0.0).xyz;
     let along_view = abs(dot(g, dir));
     let along_light = abs(dot(g, P.light_dir.xyz));
     if (along_light == 0.0) {

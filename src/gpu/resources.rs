@@ -69,7 +69,7 @@ fn texel_bytes(format: vk::Format) -> u64 {
     match format {
         vk::Format::R16_UNORM => 2,
         vk::Format::R32_SFLOAT => 4,
-        vk::Format::R16G16B16A16_SFLOAT | vk::Format::R32G32_UINT => 8,
+        vk::Format::R16G16B16A16_SFLOAT | vk::Format::R16G16B16A16_SNORM | vk::Format::R32G32_UINT => 8,
         _ => 16,
     }
 }

@@ -6,6 +6,7 @@ mod accumulate;
 pub mod bricks;
 mod features;
 pub mod gradient;
+pub mod layers;
 pub mod lbm;
 mod light_tiles;
 mod occupancy;

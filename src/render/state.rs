@@ -52,7 +52,7 @@ const MAX_GROUPS_PER_ROW: u32 = 65535;
 const LIGHT_RING: u64 = 3;
 /// Half-width of an index interface for the Fresnel term, in voxels: the gradient volume's
 /// central differences spread a step over two voxels, trilinear sampling over one more.
-const INTERFACE_HALF_WIDTH_VOXELS: f32 = 1.5;
+pub(super) const INTERFACE_HALF_WIDTH_VOXELS: f32 = 1.5;
 
 fn cols(m: Mat4) -> [[f32; 4]; 4] {
     m.to_cols_array_2d()
@@ -704,6 +704,7 @@ pub(super) fn run(
             ("linear_clamp", Resource::Sampler(&t.linear_clamp)),
             ("volume_sampler", Resource::Sampler(&t.volume_sampler)),
             ("gradient_tex", Resource::Image(&t.gradient)),
+            ("orientation_tex", Resource::Image(&t.orientation)),
             ("particle_table", Resource::Image(&t.particle_table)),
             ("medium_table", Resource::Image(&t.medium_table)),
             ("env_tex", Resource::Image(&t.env)),

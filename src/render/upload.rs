@@ -21,6 +21,8 @@ pub struct SceneTextures {
     pub volume: Image,
     /// η and ∇η per voxel (`gradient.rs`); 1×1×1 when nothing refracts.
     pub gradient: Image,
+    /// The value's gradient per voxel, for the view's layers (`layers.rs`).
+    pub orientation: Image,
     pub particle_table: Image,
     pub medium_table: Image,
     pub env: Image,
@@ -153,6 +155,7 @@ impl SceneTextures {
         let mut images: Vec<Image> = Vec::new();
 
         let vol_img = volume_image(ctx, "volume", volume)?;
+        let vol_extent = vol_img.desc.extent;
         let samples = volume.normalized_u16(window);
         let mut occupancy = super::bricks::bricks(&samples, volume.dims, tf);
         let mut cells = vec![Occupancy::visible(&samples, volume.dims, tf, super::occupancy::CELL)];
@@ -182,6 +185,22 @@ impl SceneTextures {
         uploads.push((
             images.len(),
             vec![(staging.push(bytemuck::cast_slice(&texels)), extent)],
+        ));
+        images.push(img);
+
+        // The layers' reach: the index interfaces' half-width, the same in world units along
+        // every axis, so that a profile that curves within it tilts the normal no more than
+        // it shortens it.
+        let reach =
+            super::state::INTERFACE_HALF_WIDTH_VOXELS * volume.spacing.iter().copied().fold(f32::INFINITY, f32::min);
+        let texels = super::layers::orientation_volume(&samples, volume.dims, volume.spacing, reach);
+        let img = Image::new(
+            ctx,
+            ImageDesc::sampled("orientation volume", Format::R16G16B16A16_SNORM, vol_extent, true, 1),
+        )?;
+        uploads.push((
+            images.len(),
+            vec![(staging.push(bytemuck::cast_slice(&texels)), vol_extent)],
         ));
         images.push(img);
 
@@ -251,6 +270,7 @@ impl SceneTextures {
         let mut it = images.into_iter();
         let volume = it.next().ok_or_else(missing)?;
         let gradient = it.next().ok_or_else(missing)?;
+        let orientation = it.next().ok_or_else(missing)?;
         let particle_table = it.next().ok_or_else(missing)?;
         let medium_table = it.next().ok_or_else(missing)?;
         let env = it.next().ok_or_else(missing)?;
@@ -258,6 +278,7 @@ impl SceneTextures {
         let textures = SceneTextures {
             volume,
             gradient,
+            orientation,
             particle_table,
             medium_table,
             env,
@@ -326,6 +347,7 @@ impl SceneTextures {
         vec![
             &self.volume,
             &self.gradient,
+            &self.orientation,
             &self.particle_table,
             &self.medium_table,
             &self.env,
