@@ -27,33 +27,61 @@ pub fn orientation_volume(samples: &[u16], dims: [usize; 3], spacing: [f32; 3], 
         let k = r.floor();
         (k as isize, r - k, r)
     };
-    let axes = [axis(0), axis(1), axis(2)];
+    let [(kx, fx, rx), (ky, fy, ry), (kz, fz, rz)] = [axis(0), axis(1), axis(2)];
     let scale = ORIENTATION_SCALE / 65535.0;
-    let strides = [1isize, nx as isize, (nx * ny) as isize];
-    let ns = [nx as isize, ny as isize, nz as isize];
+    let (sx, sy, sz) = (scale / rx, scale / ry, scale / rz);
+    let texel = |d: f32, s: f32| (d * s).round().clamp(-32767.0, 32767.0) as i16;
+    // Rows of x, whole: a row beyond the volume reads as the border's zeros.
+    let zeros = vec![0u16; nx];
+    let row = |y: isize, z: isize| -> &[u16] {
+        if y < 0 || z < 0 || y >= ny as isize || z >= nz as isize {
+            &zeros
+        } else {
+            let start = (z as usize * ny + y as usize) * nx;
+            &samples[start..start + nx]
+        }
+    };
+    // Differences along y and z, from the rows k and k + 1 ahead and behind, weighted.
+    let across = |texels: &mut [[i16; 4]], a: usize, rows: [&[u16]; 4], f: f32, s: f32| {
+        let [a0, a1, b0, b1] = rows;
+        for x in 0..nx {
+            let d = (1.0 - f) * (a0[x] as f32 - b0[x] as f32) + f * (a1[x] as f32 - b1[x] as f32);
+            texels[x][a] = texel(d, s);
+        }
+    };
     let mut out = vec![[0i16; 4]; nx * ny * nz];
     out.par_chunks_mut(nx * ny).enumerate().for_each(|(z, slice)| {
+        // The row along x with the border's zeros on both sides, so that x needs no bounds.
+        let pad = kx as usize + 1;
+        let mut padded = vec![0.0f32; nx + 2 * pad];
+        let z = z as isize;
         for y in 0..ny {
-            for x in 0..nx {
-                let at = [x as isize, y as isize, z as isize];
-                let base = ((z * ny + y) * nx + x) as isize;
-                let texel = &mut slice[y * nx + x];
-                for a in 0..3 {
-                    let (k, f, r) = axes[a];
-                    // The sample k voxels from here along axis a (0 outside the volume).
-                    let v = |k: isize| -> f32 {
-                        let i = at[a] + k;
-                        if i < 0 || i >= ns[a] {
-                            0.0
-                        } else {
-                            samples[(base + k * strides[a]) as usize] as f32
-                        }
-                    };
-                    let ahead = (1.0 - f) * v(k) + f * v(k + 1);
-                    let behind = (1.0 - f) * v(-k) + f * v(-k - 1);
-                    texel[a] = ((ahead - behind) / r * scale).round().clamp(-32767.0, 32767.0) as i16;
-                }
+            let texels = &mut slice[y * nx..(y + 1) * nx];
+            let here = row(y as isize, z);
+            for (p, v) in padded[pad..pad + nx].iter_mut().zip(here) {
+                *p = *v as f32;
             }
+            let k = kx as usize;
+            for (x, t) in texels.iter_mut().enumerate() {
+                let c = x + pad;
+                let d = (1.0 - fx) * (padded[c + k] - padded[c - k]) + fx * (padded[c + k + 1] - padded[c - k - 1]);
+                t[0] = texel(d, sx);
+            }
+            let y = y as isize;
+            across(
+                texels,
+                1,
+                [row(y + ky, z), row(y + ky + 1, z), row(y - ky, z), row(y - ky - 1, z)],
+                fy,
+                sy,
+            );
+            across(
+                texels,
+                2,
+                [row(y, z + kz), row(y, z + kz + 1), row(y, z - kz), row(y, z - kz - 1)],
+                fz,
+                sz,
+            );
         }
     });
     out
