@@ -18,6 +18,7 @@ override BEAMS: bool = true;                // light transport: forward beams (t
 override F32_STATE: bool = false;           // light, colour and medium state in 32-bit floats
 override DEBUG_VIEW: u32 = 0u;              // 0 image, 1 light, 2 light direction, 3 concentration, 4 medium
 override SCATTER: bool = false;             // multiple scattering, spread mode (beams without refraction)
+override SAMPLED_LAYERS: bool = false;      // no orientation volume: the layers' gradient from six samples
 // Safeguards switched off, one bit each (SG_* below). Always 0 in renders; tests set single
 // bits to show that each safeguard is needed. Constant-folded like the features above.
 override SAFEGUARDS_OFF: u32 = 0u;

@@ -122,13 +122,36 @@ fn segment_light(l0: vec3<f32>, l1: vec3<f32>, alpha: f32, layer: f32) -> vec3<f
 // change (no layer to orient).
 fn layer_ratio(p: vec3<f32>, dir: vec3<f32>) -> f32 {
     let m = mat3x3<f32>(P.gradient_to_view[0].xyz, P.gradient_to_view[1].xyz, P.gradient_to_view[2].xyz);
-    let g = m * textureSampleLevel(orientation_tex, volume_sampler, volume_coord(p), 0.0).xyz;
+    var g: vec3<f32>;
+    if (SAMPLED_LAYERS) {
+        g = m * sampled_orientation(volume_coord(p));
+    } else {
+        g = m * textureSampleLevel(orientation_tex, volume_sampler, volume_coord(p), 0.0).xyz;
+    }
     let along_view = abs(dot(g, dir));
     let along_light = abs(dot(g, P.light_dir.xyz));
     if (along_light == 0.0) {
         return select(-1.0, 1e30, along_view > 0.0);
     }
     return along_view / along_light;
+}
+
+// What the orientation volume holds at volume coordinates c, where the device has no room
+// for it: the central differences over the interface half-width h along each volume axis
+// (h / extent in texture units: h times the length of the axis's row of volume_from_view),
+// per reach in voxels. Differences of blended samples rather than blended differences, so
+// a little sharper than the volume's.
+fn sampled_orientation(c: vec3<f32>) -> vec3<f32> {
+    let m = P.volume_from_view;
+    var d = vec3<f32>(0.0);
+    for (var a = 0; a < 3; a++) {
+        let reach = P.budget.y * length(vec3<f32>(m[0][a], m[1][a], m[2][a]));
+        var o = vec3<f32>(0.0);
+        o[a] = reach;
+        let diff = textureSampleLevel(volume_tex, volume_sampler, c + o, 0.0).r - textureSampleLevel(volume_tex, volume_sampler, c - o, 0.0).r;
+        d[a] = diff * P.texel[a] / reach;
+    }
+    return d;
 }
 
 // Where along a segment (fraction from its front) its index change is centred, from η at the

@@ -145,6 +145,26 @@ fn the_byte_budget_counts_the_gradient_volume_of_a_refracting_scene() {
     assert_eq!(p.eta_volume.as_ref().map(|e| e.dims), Some([16, 16, 16]));
 }
 
+/// The orientation volume (8 bytes per voxel of the volume) is made only where it fits beside
+/// the other volume textures; where it does not, the view samples the volume instead and the
+/// volume keeps its size.
+#[test]
+fn the_orientation_volume_is_kept_only_where_it_fits() {
+    let clear = plain_tf(vec![[0.0, 0.0], [1.0, 0.5]], vec![[0.0, 1.0, 1.0, 1.0]]);
+    let voxels = 16 * 16 * 16;
+    let mut p = prepared(head_on_scene(&clear), common::sphere(16, 0.3, 1.0), clear);
+    assert!(p.orientation_volume, "made unless a device says otherwise");
+    // 2 + 8 bytes per voxel fit: kept.
+    assert_eq!(p.fit_to_device(1024, 10 * voxels, false).unwrap(), None);
+    assert!(p.orientation_volume && !p.features().sampled_layers);
+    // A byte less: dropped, and the volume is not downsampled for it.
+    assert_eq!(p.fit_to_device(1024, 10 * voxels - 1, false).unwrap(), None);
+    assert!(!p.orientation_volume && p.features().sampled_layers);
+    // Downsampled for its axes alone, the smaller volume has room for it again.
+    assert_eq!(p.fit_to_device(8, 10 * voxels - 1, true).unwrap(), Some([8, 8, 8]));
+    assert!(p.orientation_volume);
+}
+
 #[test]
 fn time_series_scene_loads_the_selected_frame() {
     let dir = std::env::temp_dir().join(format!("caustica-formats-series-{}", std::process::id()));

@@ -92,6 +92,7 @@ fn representative_variants_build_on_the_device() {
         transport: caustica::scene::LightTransport::Beams,
         lbm: true,
         scatter: false,
+        sampled_layers: false,
     };
     let mut backward = all;
     backward.transport = caustica::scene::LightTransport::Backward;
@@ -105,7 +106,7 @@ fn representative_variants_build_on_the_device() {
         ..all
     };
     let mut variants = vec![Features::default(), all, backward, spread];
-    for i in 0..9 {
+    for i in 0..10 {
         let mut f = Features::default();
         match i {
             0 => f.refraction = true,
@@ -116,6 +117,7 @@ fn representative_variants_build_on_the_device() {
             5 => f.clip = true,
             6 => f.eta_volume = true,
             7 => f.orthographic = true,
+            8 => f.sampled_layers = true,
             _ => {
                 f.refraction = true;
                 f.transport = caustica::scene::LightTransport::Backward;

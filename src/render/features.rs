@@ -31,6 +31,9 @@ pub struct Features {
     /// Multiple scattering, spread mode: beams carry scattered light and its spread (forward
     /// beams without refraction only).
     pub scatter: bool,
+    /// No orientation volume (the device has no room for it, `PreparedScene::fit_to_device`):
+    /// the view takes the layers' orientation from six samples of the volume.
+    pub sampled_layers: bool,
 }
 
 /// Diagnostic buffers `--debug-view` can show instead of the image.
@@ -79,6 +82,7 @@ impl Features {
             transport: q.light_transport,
             lbm: q.multiple_scattering == MultipleScattering::Lbm && tf.scatters(),
             scatter: Self::spread(scene, tf, refraction),
+            sampled_layers: false,
         }
     }
 
@@ -128,6 +132,8 @@ impl Features {
                     },
                     lbm: false,
                     scatter: false,
+                    // Both ways, with the projection's switch rather than doubling the count.
+                    sampled_layers: b(6),
                 }
             })
             .collect()
@@ -151,6 +157,7 @@ impl Features {
             // Every safeguard on; see `Renderer` for the test-only way to switch them off.
             ("SAFEGUARDS_OFF", 0.0),
             ("LBM", f(self.lbm)),
+            ("SAMPLED_LAYERS", f(self.sampled_layers)),
         ]
     }
 
@@ -174,6 +181,7 @@ impl Features {
             (self.transport == LightTransport::Backward, "backward"),
             (self.lbm, "lbm"),
             (self.scatter, "spread"),
+            (self.sampled_layers, "sampled-layers"),
         ] {
             if on {
                 v.push(name);
@@ -191,6 +199,9 @@ impl Features {
 /// so `scene` does not depend on `render`).
 impl crate::scene::PreparedScene {
     pub fn features(&self) -> Features {
-        Features::for_scene(&self.scene, &self.tf)
+        Features {
+            sampled_layers: !self.orientation_volume,
+            ..Features::for_scene(&self.scene, &self.tf)
+        }
     }
 }

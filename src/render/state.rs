@@ -600,6 +600,7 @@ pub(super) fn run(
                 ctx,
                 vol,
                 window,
+                !features.sampled_layers,
                 features.refraction.then_some((eta_source, features.gradient)),
                 &prepared.tf,
                 scene.quality.sample_distance,

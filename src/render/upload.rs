@@ -137,13 +137,14 @@ pub type EtaSource<'a> = (Option<(&'a Volume, [f32; 2])>, Gradient);
 
 impl SceneTextures {
     /// Creates the textures and stages their contents; [`SceneTextures::record_upload`]
-    /// copies them in. `refraction`: the η source (the η volume with its value range, or the
-    /// volume itself) for the gradient volume.
+    /// copies them in. `orientation`: make the orientation volume. `refraction`: the η source
+    /// (the η volume with its value range, or the volume itself) for the gradient volume.
     #[allow(clippy::too_many_arguments)]
     pub fn upload(
         ctx: &Arc<Context>,
         volume: &Volume,
         window: [f32; 2],
+        orientation: bool,
         refraction: Option<EtaSource<'_>>,
         tf: &TransferFunctions,
         sample_distance: f32,
@@ -190,17 +191,24 @@ impl SceneTextures {
 
         // The layers' reach: the index interfaces' half-width, the same in world units along
         // every axis, so that a profile that curves within it tilts the normal no more than
-        // it shortens it.
-        let reach =
-            super::state::INTERFACE_HALF_WIDTH_VOXELS * volume.spacing.iter().copied().fold(f32::INFINITY, f32::min);
-        let texels = super::layers::orientation_volume(&samples, volume.dims, volume.spacing, reach);
+        // it shortens it. Without room on the device, one texel: the view samples instead.
+        let (extent, texels) = if orientation {
+            let reach = super::state::INTERFACE_HALF_WIDTH_VOXELS
+                * volume.spacing.iter().copied().fold(f32::INFINITY, f32::min);
+            (
+                vol_extent,
+                super::layers::orientation_volume(&samples, volume.dims, volume.spacing, reach),
+            )
+        } else {
+            ([1, 1, 1], vec![[0i16; 4]])
+        };
         let img = Image::new(
             ctx,
-            ImageDesc::sampled("orientation volume", Format::R16G16B16A16_SNORM, vol_extent, true, 1),
+            ImageDesc::sampled("orientation volume", Format::R16G16B16A16_SNORM, extent, true, 1),
         )?;
         uploads.push((
             images.len(),
-            vec![(staging.push(bytemuck::cast_slice(&texels)), vol_extent)],
+            vec![(staging.push(bytemuck::cast_slice(&texels)), extent)],
         ));
         images.push(img);
 
@@ -381,6 +389,8 @@ pub struct TexturesKey {
     eta_volume: Option<Arc<Volume>>,
     /// The gradient volume exists (refraction) and how it was reconstructed.
     gradient: Option<Gradient>,
+    /// The orientation volume exists.
+    orientation: bool,
     window: [f32; 2],
     tf: TransferFunctions,
     sample_distance: f32,
@@ -393,6 +403,7 @@ impl TexturesKey {
             volume: prepared.volume.clone(),
             eta_volume: prepared.eta_volume.clone().filter(|_| features.eta_volume),
             gradient: features.refraction.then_some(features.gradient),
+            orientation: !features.sampled_layers,
             window: prepared.window(),
             tf: prepared.tf.clone(),
             sample_distance: prepared.scene.quality.sample_distance,
@@ -414,6 +425,7 @@ impl TexturesKey {
         Arc::ptr_eq(&self.volume, &other.volume)
             && eta_same
             && self.gradient == other.gradient
+            && self.orientation == other.orientation
             && self.window == other.window
             && self.tf == other.tf
             && self.environment == other.environment

@@ -44,6 +44,10 @@ pub struct PreparedScene {
     pub env: Option<EnvMap>,
     /// What the volume's file said about it, and its histogram (computed once at load).
     pub volume_info: VolumeInfo,
+    /// The view reads the layers' orientation from a volume of its own (8 bytes per voxel,
+    /// `render::layers`); where that does not fit the device beside the other volume textures
+    /// ([`PreparedScene::fit_to_device`]), it samples the volume six times instead.
+    pub orientation_volume: bool,
 }
 
 /// Metadata and histogram of the loaded volume, and the window used when the scene has none.
@@ -94,6 +98,7 @@ impl PreparedScene {
             volume,
             eta_volume,
             volume_info,
+            orientation_volume: true,
         })
     }
 
@@ -106,6 +111,7 @@ impl PreparedScene {
             volume: Arc::new(loaded.volume),
             eta_volume: None,
             tf,
+            orientation_volume: true,
         })
     }
 
@@ -133,7 +139,8 @@ impl PreparedScene {
 
     /// Downsamples the volumes (and warns) when they exceed `max_dim` voxels along an axis or
     /// `max_bytes` of volume texture memory; with `allow` false that is an error instead.
-    /// Returns the new dims when the volume was downsampled.
+    /// Returns the new dims when the volume was downsampled. The orientation volume is kept
+    /// only where it fits as well; it never makes the volume smaller.
     pub fn fit_to_device(
         &mut self,
         max_dim: u32,
@@ -155,7 +162,16 @@ impl PreparedScene {
             .copied()
             .max()
             .unwrap_or(1);
+        // The orientation volume: 8 bytes per voxel of the volume (`render::layers`).
+        let orientation = |dims: [usize; 3], bytes: u64| bytes.saturating_add(8 * voxels(dims)) <= max_bytes;
         if largest <= max_dim as usize && bytes <= max_bytes {
+            self.orientation_volume = orientation(self.volume.dims, bytes);
+            if !self.orientation_volume {
+                log::info!(
+                    "the orientation volume ({} MiB) does not fit beside the volume textures; the view samples the volume six times instead",
+                    (8 * voxels(self.volume.dims)) >> 20
+                );
+            }
             return Ok(None);
         }
         // Downsampled, the η volume takes the volume's dims: 2 + 8 bytes per voxel then.
@@ -181,6 +197,7 @@ impl PreparedScene {
                 self.eta_volume = Some(Arc::new(resample(eta, dims)?));
             }
         }
+        self.orientation_volume = orientation(dims, per_voxel * voxels(dims));
         Ok(Some(dims))
     }
 }
