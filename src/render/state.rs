@@ -52,7 +52,14 @@ const MAX_GROUPS_PER_ROW: u32 = 65535;
 const LIGHT_RING: u64 = 3;
 /// Half-width of an index interface for the Fresnel term, in voxels: the gradient volume's
 /// central differences spread a step over two voxels, trilinear sampling over one more.
-pub(super) const INTERFACE_HALF_WIDTH_VOXELS: f32 = 1.5;
+const INTERFACE_HALF_WIDTH_VOXELS: f32 = 1.5;
+
+/// The interface half-width in world units: [`INTERFACE_HALF_WIDTH_VOXELS`] of the finest
+/// spacing, the same reach along every axis (the Fresnel term's, and the orientation
+/// volume's differences).
+pub(super) fn interface_half_width(spacing: [f32; 3]) -> f32 {
+    INTERFACE_HALF_WIDTH_VOXELS * spacing.iter().copied().fold(f32::INFINITY, f32::min)
+}
 
 fn cols(m: Mat4) -> [[f32; 4]; 4] {
     m.to_cols_array_2d()
@@ -274,7 +281,6 @@ fn make_params(
         crate::scene::Environment::Color { .. } => 1.0,
     };
     let rotation = Mat4::from_mat3(glam::Mat3::from_mat4(view.world_from_view));
-    let min_spacing = vol.spacing.iter().copied().fold(f32::INFINITY, f32::min);
     let g = &layout.grid;
     let r = view.rect;
     Params {
@@ -318,7 +324,7 @@ fn make_params(
         limits: [MIN_LIGHT_DIR_Z, MIN_VIEW_DIR_Z, MAX_LIGHT_VALUE, env_levels as f32],
         budget: [
             scene.quality.max_concentration(),
-            INTERFACE_HALF_WIDTH_VOXELS * min_spacing,
+            interface_half_width(vol.spacing),
             light_margin,
             f32::from(u8::from(super::bricks::clear_outside(&prepared.tf))),
         ],

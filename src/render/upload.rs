@@ -126,9 +126,32 @@ fn halves(values: impl Iterator<Item = f32>) -> Vec<u8> {
         .collect()
 }
 
-fn volume_image(ctx: &Arc<Context>, label: &str, vol: &Volume) -> Result<Image, GpuError> {
-    let extent = [vol.dims[0] as u32, vol.dims[1] as u32, vol.dims[2] as u32];
-    Image::new(ctx, ImageDesc::sampled(label, Format::R16_UNORM, extent, true, 1))
+/// The images being created and the contents staged for them, in the order
+/// [`SceneTextures::images`] indexes them.
+#[derive(Default)]
+struct Staged {
+    staging: Staging,
+    /// (index into `images`, (staging offset, extent) per mip level)
+    uploads: Vec<(usize, Levels)>,
+    images: Vec<Image>,
+}
+
+impl Staged {
+    /// Creates a sampled 3D image of `extent` texels in `format` and stages `bytes` for it.
+    fn volume(
+        &mut self,
+        ctx: &Arc<Context>,
+        label: &str,
+        format: Format,
+        extent: [u32; 3],
+        bytes: &[u8],
+    ) -> Result<(), GpuError> {
+        let image = Image::new(ctx, ImageDesc::sampled(label, format, extent, true, 1))?;
+        self.uploads
+            .push((self.images.len(), vec![(self.staging.push(bytes), extent)]));
+        self.images.push(image);
+        Ok(())
+    }
 }
 
 /// Where the gradient volume's η comes from: a separate η volume with its value range (else
@@ -150,19 +173,18 @@ impl SceneTextures {
         sample_distance: f32,
         env: Option<&EnvMap>,
     ) -> Result<(Self, PendingUpload), GpuError> {
-        let mut staging = Staging::default();
-        // (index into `images`, (staging offset, extent) per mip level)
-        let mut uploads: Vec<(usize, Levels)> = Vec::new();
-        let mut images: Vec<Image> = Vec::new();
-
-        let vol_img = volume_image(ctx, "volume", volume)?;
-        let vol_extent = vol_img.desc.extent;
+        let mut staged = Staged::default();
+        let vol_extent = volume.dims.map(|n| n as u32);
         let samples = volume.normalized_u16(window);
         let mut occupancy = super::bricks::bricks(&samples, volume.dims, tf);
         let mut cells = vec![Occupancy::visible(&samples, volume.dims, tf, super::occupancy::CELL)];
-        let bytes: Vec<u8> = bytemuck::cast_slice(&samples).to_vec();
-        uploads.push((images.len(), vec![(staging.push(&bytes), vol_img.desc.extent)]));
-        images.push(vol_img);
+        staged.volume(
+            ctx,
+            "volume",
+            Format::R16_UNORM,
+            vol_extent,
+            bytemuck::cast_slice(&samples),
+        )?;
 
         let (extent, texels) = match refraction {
             Some((eta_source, scheme)) => {
@@ -179,22 +201,19 @@ impl SceneTextures {
             }
             None => ([1, 1, 1], vec![[half::f16::ZERO; 4]]),
         };
-        let img = Image::new(
+        staged.volume(
             ctx,
-            ImageDesc::sampled("gradient volume", Format::R16G16B16A16_SFLOAT, extent, true, 1),
+            "gradient volume",
+            Format::R16G16B16A16_SFLOAT,
+            extent,
+            bytemuck::cast_slice(&texels),
         )?;
-        uploads.push((
-            images.len(),
-            vec![(staging.push(bytemuck::cast_slice(&texels)), extent)],
-        ));
-        images.push(img);
 
         // The layers' reach: the index interfaces' half-width, the same in world units along
         // every axis, so that a profile that curves within it tilts the normal no more than
         // it shortens it. Without room on the device, one texel: the view samples instead.
         let (extent, texels) = if orientation {
-            let reach = super::state::INTERFACE_HALF_WIDTH_VOXELS
-                * volume.spacing.iter().copied().fold(f32::INFINITY, f32::min);
+            let reach = super::state::interface_half_width(volume.spacing);
             (
                 vol_extent,
                 super::layers::orientation_volume(&samples, volume.dims, volume.spacing, reach),
@@ -202,20 +221,20 @@ impl SceneTextures {
         } else {
             ([1, 1, 1], vec![[0i16; 4]])
         };
-        let img = Image::new(
+        staged.volume(
             ctx,
-            ImageDesc::sampled("orientation volume", Format::R16G16B16A16_SNORM, extent, true, 1),
+            "orientation volume",
+            Format::R16G16B16A16_SNORM,
+            extent,
+            bytemuck::cast_slice(&texels),
         )?;
-        uploads.push((
-            images.len(),
-            vec![(staging.push(bytemuck::cast_slice(&texels)), extent)],
-        ));
-        images.push(img);
 
         let table_texels = TableTexels::new(tf, sample_distance);
-        for (img, offset) in tables(ctx, &table_texels, &mut staging)? {
-            uploads.push((images.len(), vec![(offset, img.desc.extent)]));
-            images.push(img);
+        for (img, offset) in tables(ctx, &table_texels, &mut staged.staging)? {
+            staged
+                .uploads
+                .push((staged.images.len(), vec![(offset, img.desc.extent)]));
+            staged.images.push(img);
         }
 
         let fallback;
@@ -239,11 +258,16 @@ impl SceneTextures {
         )?;
         let levels = env_levels
             .iter()
-            .map(|(w, h, px)| (staging.push(&halves(px.iter().flatten().copied())), [*w, *h, 1]))
+            .map(|(w, h, px)| (staged.staging.push(&halves(px.iter().flatten().copied())), [*w, *h, 1]))
             .collect();
-        uploads.push((images.len(), levels));
-        images.push(img);
+        staged.uploads.push((staged.images.len(), levels));
+        staged.images.push(img);
 
+        let Staged {
+            staging,
+            uploads,
+            images,
+        } = staged;
         let buffer = staging.into_buffer(ctx)?;
 
         use ash::vk::SamplerAddressMode as A;
