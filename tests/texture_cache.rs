@@ -9,6 +9,7 @@ use std::sync::Arc;
 
 use caustica::render::{PreparedScene, RenderError, RenderRequest};
 use caustica::scene::{builtin, VolumeSource};
+use caustica::transfer::{ColorRamp, TABLE_SIZE};
 use common::Gpu;
 
 type Edit = Box<dyn Fn(&mut PreparedScene)>;
@@ -87,5 +88,61 @@ fn sample_distances_changing_back_and_forth_keep_the_images_of_fresh_uploads() {
         Err(RenderError::Cancelled)
     ));
     assert_eq!(gpu.render(&p, &req).image.pixels, fresh(&p), "after a cancelled render");
+    gpu.assert_clean();
+}
+
+#[test]
+fn a_transfer_function_edit_keeps_the_volume_images_unless_eta_changes() {
+    // An edit of opacity, colour or the medium changes only the pre-integrated tables, the
+    // bricks and the occupied cells: the volume, gradient and orientation volumes are kept and
+    // only the two tables are copied in (16-bit rgba texels, TABLE_SIZE² each). An edit of η
+    // remakes the gradient volume, and everything is copied again. Each image must be the
+    // fresh renderer's.
+    let table_bytes = 2 * (TABLE_SIZE * TABLE_SIZE * 8) as u64;
+    let mut gpu = Gpu::new();
+    let req = RenderRequest::new(48, 40);
+    let mut p = prepared();
+    let full = gpu.render(&p, &req).stats.upload_bytes;
+    assert!(
+        full > table_bytes + 32 * 32 * 32 * 2,
+        "a new scene copies its volumes: {full} bytes"
+    );
+    assert!(gpu.render(&p, &req).stats.features.refraction);
+    assert_eq!(gpu.render(&p, &req).stats.upload_bytes, 0, "nothing changed");
+
+    let edits: Vec<(&str, Edit, bool)> = vec![
+        (
+            "opacity",
+            Box::new(|p: &mut PreparedScene| p.tf.opacity.points = vec![[0.0, 0.0], [0.3, 0.8]]),
+            false,
+        ),
+        (
+            "medium colour",
+            Box::new(|p: &mut PreparedScene| {
+                p.tf.medium = ColorRamp {
+                    points: vec![[0.0, 1.0, 1.0, 1.0], [1.0, 0.6, 0.8, 0.9]],
+                }
+            }),
+            false,
+        ),
+        (
+            "η",
+            Box::new(|p: &mut PreparedScene| {
+                for point in &mut p.tf.eta.points {
+                    point[1] = 1.0 + 0.8 * (point[1] - 1.0);
+                }
+            }),
+            true,
+        ),
+    ];
+    for (name, edit, remade) in edits {
+        let before = gpu.render(&p, &req).image.pixels;
+        edit(&mut p);
+        let out = gpu.render(&p, &req);
+        assert!(out.image.pixels != before, "{name}: the edit changes the image");
+        assert!(out.image.pixels == fresh(&p), "{name}: not the fresh renderer's image");
+        let expected = if remade { full } else { table_bytes };
+        assert_eq!(out.stats.upload_bytes, expected, "{name}: bytes copied in");
+    }
     gpu.assert_clean();
 }

@@ -142,12 +142,14 @@ impl App {
                                 name, image.width, image.height, stats.planes, duration_ms
                             );
                             // What the device spent of it, by pass; the rest is the CPU's
-                            // (scene setup, recording, waiting) and the copy back.
+                            // (scene setup, recording, waiting) and the copy back. The upload:
+                            // what of the scene textures had to be made and copied anew.
                             let [light, view, listing, finish] = stats.pass_ms;
                             eprintln!(
-                                "gpu: {:.1} ms (light {light:.1}, view {view:.1}, listing {listing:.1}, finish {finish:.1}), other {:.1} ms",
+                                "gpu: {:.1} ms (light {light:.1}, view {view:.1}, listing {listing:.1}, finish {finish:.1}), other {:.1} ms, upload {:.1} MiB",
                                 stats.gpu_ms,
-                                duration_ms - stats.gpu_ms
+                                duration_ms - stats.gpu_ms,
+                                stats.upload_bytes as f64 / (1024.0 * 1024.0)
                             );
                         }
                         if self.opts.orbit_frames > 0 {

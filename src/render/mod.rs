@@ -150,6 +150,10 @@ pub struct RenderStats {
     /// Bytes of the scene textures (volume, gradient volume, tables, environment) and the
     /// brick flags.
     pub texture_bytes: u64,
+    /// Bytes copied into the scene textures for this render: all of them for a new scene,
+    /// the tables after a change of sample distance or of the transfer functions (η aside),
+    /// none where the kept textures served as they were.
+    pub upload_bytes: u64,
     /// The most memory allocated on the device at once during the render: scene textures,
     /// state buffers, parameters, staging and read-back, by where it lives (each class's own
     /// peak). Whatever else the program held at the time counts as well.

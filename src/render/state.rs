@@ -596,6 +596,11 @@ pub(super) fn run(
             // Another sample distance only (the viewer's levels): new tables, the rest kept.
             pending = Some(c.replace_tables(ctx, &prepared.tf, key)?);
         }
+        Some(c) if c.matches_but_transfer(&key) => {
+            // Other transfer functions with the same η (the editor): new tables, bricks and
+            // cells; the volume images are kept.
+            pending = Some(c.replace_transfer(ctx, &prepared.tf, key)?);
+        }
         _ => {
             *cache = None; // free the old textures before allocating new ones
             let eta_source = match (&prepared.eta_volume, features.eta_volume) {
@@ -616,6 +621,7 @@ pub(super) fn run(
             pending = Some(upload);
         }
     }
+    let upload_bytes = pending.as_ref().map_or(0, |p| p.bytes());
     let cached = cache
         .as_ref()
         .ok_or_else(|| RenderError::Setup("internal: scene textures missing".into()))?;
@@ -933,6 +939,7 @@ pub(super) fn run(
                     ms_per_plane: (gpu_ms - lbm_light.as_ref().map_or(0.0, |l| l.stats.gpu_ms))
                         / planes_run.max(1) as f64,
                     state_bytes: state.bytes,
+                    upload_bytes,
                     light_grid: [layout.grid.width, layout.grid.height],
                     light_cell_pixels: layout.grid.stride,
                     view_passes,

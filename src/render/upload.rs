@@ -39,6 +39,17 @@ pub struct SceneTextures {
     pub occupancy: Vec<Occupancy>,
     /// The tables' texels for the sample distances used last (`replace_tables`).
     kept_tables: Vec<TableTexels>,
+    /// What the transfer functions do not change, for [`SceneTextures::replace_transfer`].
+    untouched: Untouched,
+}
+
+/// What a transfer-function edit leaves as it was (its η aside): the volume's samples in its
+/// window, from which the bricks and the occupied cells are found again, and with refraction
+/// the bricks and cells where η changes.
+struct Untouched {
+    samples: Arc<Vec<u16>>,
+    dims: [usize; 3],
+    refracting: Option<(Vec<u32>, Occupancy)>,
 }
 
 /// The contents of freshly created [`SceneTextures`], staged for [`SceneTextures::record_upload`].
@@ -158,6 +169,13 @@ impl Staged {
 /// the volume itself), and the difference scheme.
 pub type EtaSource<'a> = (Option<(&'a Volume, [f32; 2])>, Gradient);
 
+impl PendingUpload {
+    /// Bytes staged for the copy.
+    pub fn bytes(&self) -> u64 {
+        self.staging.size
+    }
+}
+
 impl SceneTextures {
     /// Creates the textures and stages their contents; [`SceneTextures::record_upload`]
     /// copies them in. `orientation`: make the orientation volume. `refraction`: the η source
@@ -174,10 +192,12 @@ impl SceneTextures {
         env: Option<&EnvMap>,
     ) -> Result<(Self, PendingUpload), GpuError> {
         let mut staged = Staged::default();
-        let vol_extent = volume.dims.map(|n| n as u32);
-        let samples = volume.normalized_u16(window);
+        let vol_dims = volume.dims;
+        let vol_extent = vol_dims.map(|n| n as u32);
+        let samples = Arc::new(volume.normalized_u16(window));
         let mut occupancy = super::bricks::bricks(&samples, volume.dims, tf);
         let mut cells = vec![Occupancy::visible(&samples, volume.dims, tf, super::occupancy::CELL)];
+        let mut refracting = None;
         staged.volume(
             ctx,
             "volume",
@@ -195,8 +215,17 @@ impl SceneTextures {
                     ),
                     None => (volume.dims, gradient_volume(&samples, volume.dims, &tf.eta, scheme)),
                 };
-                cells.push(Occupancy::refracting(&g, dims));
-                super::bricks::add_refracting(&mut occupancy, volume.dims, &g, dims);
+                let refracting_cells = Occupancy::refracting(&g, dims);
+                let mut bends = super::bricks::Bricks {
+                    flags: vec![0; occupancy.flags.len()],
+                    dims: occupancy.dims,
+                };
+                super::bricks::add_refracting(&mut bends, volume.dims, &g, dims);
+                for (flag, bent) in occupancy.flags.iter_mut().zip(&bends.flags) {
+                    *flag |= bent;
+                }
+                cells.push(refracting_cells.clone());
+                refracting = Some((bends.flags, refracting_cells));
                 ([dims[0] as u32, dims[1] as u32, dims[2] as u32], g)
             }
             None => ([1, 1, 1], vec![[half::f16::ZERO; 4]]),
@@ -322,6 +351,11 @@ impl SceneTextures {
             brick_dims: occupancy.dims,
             occupancy: cells,
             kept_tables: vec![table_texels],
+            untouched: Untouched {
+                samples,
+                dims: vol_dims,
+                refracting,
+            },
         };
         let pending = PendingUpload {
             staging: Arc::new(buffer),
@@ -367,6 +401,34 @@ impl SceneTextures {
             staging: Arc::new(staging.into_buffer(ctx)?),
             uploads,
         })
+    }
+
+    /// Brings the textures up to date with other transfer functions whose η is the same (the
+    /// gradient volume stays), at `sample_distance`, and stages what changed: the
+    /// pre-integrated tables, the bricks and the occupied cells. The volume, the orientation
+    /// volume, the gradient volume and the environment stay: on the CT head they are about
+    /// 130 MB to make and copy, which every edit in the viewer's editor paid before.
+    fn replace_transfer(
+        &mut self,
+        ctx: &Arc<Context>,
+        tf: &TransferFunctions,
+        sample_distance: f32,
+    ) -> Result<PendingUpload, GpuError> {
+        let u = &self.untouched;
+        let mut bricks = super::bricks::bricks(&u.samples, u.dims, tf);
+        let mut cells = vec![Occupancy::visible(&u.samples, u.dims, tf, super::occupancy::CELL)];
+        if let Some((bends, refracting_cells)) = &u.refracting {
+            for (flag, bent) in bricks.flags.iter_mut().zip(bends) {
+                *flag |= bent;
+            }
+            cells.push(refracting_cells.clone());
+        }
+        self.bricks = Buffer::new_storage_from(ctx, "bricks", bytemuck::cast_slice(&bricks.flags))?;
+        self.brick_dims = bricks.dims;
+        self.occupancy = cells;
+        // Tables of the old transfer functions are of no use any more.
+        self.kept_tables.clear();
+        self.replace_tables(ctx, tf, sample_distance)
     }
 
     /// Bytes of device memory the textures and the brick flags hold.
@@ -441,6 +503,13 @@ impl TexturesKey {
 
     /// The same but for the sample distance, on which only the pre-integrated tables depend.
     fn same_but_step(&self, other: &TexturesKey) -> bool {
+        self.same_but_transfer(other) && self.tf == other.tf
+    }
+
+    /// The same but for the transfer functions other than η where a gradient volume was made
+    /// from η, and the sample distance: what [`SceneTextures::replace_transfer`] brings up to
+    /// date.
+    fn same_but_transfer(&self, other: &TexturesKey) -> bool {
         let eta_same = match (&self.eta_volume, &other.eta_volume) {
             (Some(a), Some(b)) => Arc::ptr_eq(a, b),
             (None, None) => true,
@@ -451,7 +520,7 @@ impl TexturesKey {
             && self.gradient == other.gradient
             && self.orientation == other.orientation
             && self.window == other.window
-            && self.tf == other.tf
+            && (self.gradient.is_none() || self.tf.eta == other.tf.eta)
             && self.environment == other.environment
     }
 }
@@ -501,6 +570,28 @@ impl CachedTextures {
     ) -> Result<PendingUpload, GpuError> {
         self.uploaded.set(false);
         let pending = self.textures.replace_tables(ctx, tf, key.sample_distance)?;
+        self.key = key;
+        Ok(pending)
+    }
+
+    /// Whether the textures differ from `key`'s only in what a transfer-function edit that
+    /// keeps η changes: [`CachedTextures::replace_transfer`] brings them up to date.
+    pub fn matches_but_transfer(&self, key: &TexturesKey) -> bool {
+        self.uploaded.get() && self.key.same_but_transfer(key)
+    }
+
+    /// New tables, bricks and occupied cells for `key`'s transfer functions and sample
+    /// distance (the volume images are kept); until the returned upload has executed nothing
+    /// matches.
+    pub fn replace_transfer(
+        &mut self,
+        ctx: &Arc<Context>,
+        tf: &TransferFunctions,
+        key: TexturesKey,
+    ) -> Result<PendingUpload, GpuError> {
+        self.uploaded.set(false);
+        self.grown.replace(None);
+        let pending = self.textures.replace_transfer(ctx, tf, key.sample_distance)?;
         self.key = key;
         Ok(pending)
     }
