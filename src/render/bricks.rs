@@ -7,7 +7,7 @@
 
 use rayon::prelude::*;
 
-use super::occupancy::Occupancy;
+use super::occupancy::ValueRanges;
 use crate::transfer::TransferFunctions;
 
 /// Voxels per brick edge.
@@ -50,10 +50,15 @@ pub fn clear_outside(tf: &TransferFunctions) -> bool {
 }
 
 /// The bricks of a volume of `dims` voxels with 16-bit samples (0..65535 ↦ [0, 1]): the
-/// cells of [`BRICK`] voxels whose particles absorb or show ([`Occupancy::visible`]; bricks at
+/// cells of [`BRICK`] voxels whose particles absorb or show ([`ValueRanges`]; bricks at
 /// the volume's faces also reach the zero outside it).
 pub fn bricks(samples: &[u16], dims: [usize; 3], tf: &TransferFunctions) -> Bricks {
-    let cells = Occupancy::visible(samples, dims, tf, BRICK);
+    visible_bricks(&ValueRanges::new(samples, dims, BRICK), tf)
+}
+
+/// The bricks whose particles absorb or show under `tf`, from the bricks' value ranges.
+pub fn visible_bricks(ranges: &ValueRanges, tf: &TransferFunctions) -> Bricks {
+    let cells = ranges.visible(tf);
     Bricks {
         flags: cells.flags.iter().map(|&f| u32::from(f)).collect(),
         dims: cells.cells.map(|n| n as u32),

@@ -24,6 +24,68 @@ pub struct Occupancy {
     pub edge: usize,
 }
 
+/// The range of the 16-bit samples that each cell of `edge` voxels reaches, as
+/// [`Occupancy::visible`] takes it (the cells at the volume's faces reach the value 0 outside
+/// it; lo > hi: none). No transfer function changes it: a transfer-function edit finds the
+/// occupied cells from it without reading the volume again.
+#[derive(Clone, Debug)]
+pub struct ValueRanges {
+    ranges: Vec<[u16; 2]>,
+    cells: [usize; 3],
+    voxels: [usize; 3],
+    edge: usize,
+}
+
+impl ValueRanges {
+    pub fn new(samples: &[u16], dims: [usize; 3], edge: usize) -> ValueRanges {
+        let [nx, ny, nz] = dims;
+        let reach = |i: usize, n: usize| reach(i, n, edge);
+        let cells = dims.map(|d| d.div_ceil(edge).max(1));
+        let ranges = (0..cells[0] * cells[1] * cells[2])
+            .into_par_iter()
+            .map(|c| {
+                let [cx, cy, cz] = [c % cells[0], (c / cells[0]) % cells[1], c / (cells[0] * cells[1])];
+                let (mut lo, mut hi) = (u16::MAX, 0u16);
+                let xs = reach(cx, nx);
+                for z in reach(cz, nz) {
+                    for y in reach(cy, ny) {
+                        let row = (z * ny + y) * nx;
+                        for &v in &samples[row + xs.start..row + xs.end] {
+                            lo = lo.min(v);
+                            hi = hi.max(v);
+                        }
+                    }
+                }
+                let face = |i: usize, n: usize| i == 0 || (i + 1) * edge >= n;
+                if face(cx, nx) || face(cy, ny) || face(cz, nz) {
+                    lo = 0;
+                }
+                [lo, hi]
+            })
+            .collect();
+        ValueRanges {
+            ranges,
+            cells,
+            voxels: dims,
+            edge,
+        }
+    }
+
+    /// The cells whose particles absorb or show under `tf`.
+    pub fn visible(&self, tf: &TransferFunctions) -> Occupancy {
+        Occupancy {
+            flags: self
+                .ranges
+                .par_iter()
+                .map(|&[lo, hi]| lo <= hi && super::bricks::visible(tf, lo as f32 / 65535.0, hi as f32 / 65535.0))
+                .collect(),
+            cells: self.cells,
+            voxels: self.voxels,
+            edge: self.edge,
+        }
+    }
+}
+
 /// The voxel range of cell `i` of `edge` voxels along an axis of `n` voxels, one voxel wider
 /// on each side (what trilinear sampling inside the cell reaches).
 fn reach(i: usize, n: usize, edge: usize) -> std::ops::Range<usize> {
@@ -48,26 +110,7 @@ impl Occupancy {
     /// The cells of `edge` voxels whose particles absorb or show (16-bit samples, 0..65535 ↦
     /// [0, 1]); cells at the volume's faces also reach the value 0 outside it.
     pub fn visible(samples: &[u16], dims: [usize; 3], tf: &TransferFunctions, edge: usize) -> Occupancy {
-        let [nx, ny, nz] = dims;
-        let reach = |i: usize, n: usize| reach(i, n, edge);
-        Self::build(dims, edge, |[cx, cy, cz]| {
-            let (mut lo, mut hi) = (u16::MAX, 0u16);
-            let xs = reach(cx, nx);
-            for z in reach(cz, nz) {
-                for y in reach(cy, ny) {
-                    let row = (z * ny + y) * nx;
-                    for &v in &samples[row + xs.start..row + xs.end] {
-                        lo = lo.min(v);
-                        hi = hi.max(v);
-                    }
-                }
-            }
-            let face = |i: usize, n: usize| i == 0 || (i + 1) * edge >= n;
-            if face(cx, nx) || face(cy, ny) || face(cz, nz) {
-                lo = 0;
-            }
-            lo <= hi && super::bricks::visible(tf, lo as f32 / 65535.0, hi as f32 / 65535.0)
-        })
+        ValueRanges::new(samples, dims, edge).visible(tf)
     }
 
     /// The cells of [`CELL`] voxels where η changes: a texel of the gradient volume

@@ -12,7 +12,7 @@ use crate::volume::Volume;
 
 use super::environment::EnvMap;
 use super::gradient::gradient_volume;
-use super::occupancy::{Grown, Occupancy};
+use super::occupancy::{Grown, Occupancy, ValueRanges};
 
 type Levels = Vec<(u64, [u32; 3])>;
 
@@ -43,12 +43,12 @@ pub struct SceneTextures {
     untouched: Untouched,
 }
 
-/// What a transfer-function edit leaves as it was (its η aside): the volume's samples in its
-/// window, from which the bricks and the occupied cells are found again, and with refraction
-/// the bricks and cells where η changes.
+/// What a transfer-function edit leaves as it was (its η aside): the range of the volume's
+/// samples in each brick and each occupied-cell grid cell, from which the bricks and the
+/// occupied cells are found again, and with refraction the bricks and cells where η changes.
 struct Untouched {
-    samples: Arc<Vec<u16>>,
-    dims: [usize; 3],
+    brick_ranges: ValueRanges,
+    cell_ranges: ValueRanges,
     refracting: Option<(Vec<u32>, Occupancy)>,
 }
 
@@ -194,9 +194,11 @@ impl SceneTextures {
         let mut staged = Staged::default();
         let vol_dims = volume.dims;
         let vol_extent = vol_dims.map(|n| n as u32);
-        let samples = Arc::new(volume.normalized_u16(window));
-        let mut occupancy = super::bricks::bricks(&samples, volume.dims, tf);
-        let mut cells = vec![Occupancy::visible(&samples, volume.dims, tf, super::occupancy::CELL)];
+        let samples = volume.normalized_u16(window);
+        let brick_ranges = ValueRanges::new(&samples, vol_dims, super::bricks::BRICK);
+        let cell_ranges = ValueRanges::new(&samples, vol_dims, super::occupancy::CELL);
+        let mut occupancy = super::bricks::visible_bricks(&brick_ranges, tf);
+        let mut cells = vec![cell_ranges.visible(tf)];
         let mut refracting = None;
         staged.volume(
             ctx,
@@ -352,8 +354,8 @@ impl SceneTextures {
             occupancy: cells,
             kept_tables: vec![table_texels],
             untouched: Untouched {
-                samples,
-                dims: vol_dims,
+                brick_ranges,
+                cell_ranges,
                 refracting,
             },
         };
@@ -415,8 +417,8 @@ impl SceneTextures {
         sample_distance: f32,
     ) -> Result<PendingUpload, GpuError> {
         let u = &self.untouched;
-        let mut bricks = super::bricks::bricks(&u.samples, u.dims, tf);
-        let mut cells = vec![Occupancy::visible(&u.samples, u.dims, tf, super::occupancy::CELL)];
+        let mut bricks = super::bricks::visible_bricks(&u.brick_ranges, tf);
+        let mut cells = vec![u.cell_ranges.visible(tf)];
         if let Some((bends, refracting_cells)) = &u.refracting {
             for (flag, bent) in bricks.flags.iter_mut().zip(bends) {
                 *flag |= bent;
