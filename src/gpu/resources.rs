@@ -192,6 +192,11 @@ impl Buffer {
 
     /// Copies `bytes` to the start of a mapped buffer.
     pub fn write(&mut self, bytes: &[u8]) -> Result<(), GpuError> {
+        self.write_at(0, bytes)
+    }
+
+    /// Copies `bytes` into a host-visible buffer at byte `offset`.
+    pub fn write_at(&mut self, offset: u64, bytes: &[u8]) -> Result<(), GpuError> {
         let label = self.label.clone();
         let slice = self
             .allocation
@@ -201,13 +206,14 @@ impl Buffer {
                 what: label.clone(),
                 message: "buffer is not host visible".into(),
             })?;
-        if bytes.len() > slice.len() {
+        let start = offset as usize;
+        if start.checked_add(bytes.len()).is_none_or(|end| end > slice.len()) {
             return Err(GpuError::Allocation {
                 what: label,
-                message: format!("write of {} bytes into {} bytes", bytes.len(), slice.len()),
+                message: format!("write of {} bytes at {offset} into {} bytes", bytes.len(), slice.len()),
             });
         }
-        slice[..bytes.len()].copy_from_slice(bytes);
+        slice[start..start + bytes.len()].copy_from_slice(bytes);
         Ok(())
     }
 

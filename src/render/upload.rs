@@ -59,31 +59,46 @@ pub struct PendingUpload {
     uploads: Vec<(usize, Levels)>,
 }
 
-/// Collects byte blobs into one staging buffer with aligned offsets.
+/// Texels to stage, owned: a volume's are written once, straight into the mapped staging
+/// buffer (on the CT head the volume, gradient and orientation volumes are about 130 MB, and a
+/// copy through a staging `Vec` on the way cost as much again in copies and page faults).
+trait Blob {
+    fn bytes(&self) -> &[u8];
+}
+
+impl<T: bytemuck::Pod> Blob for Vec<T> {
+    fn bytes(&self) -> &[u8] {
+        bytemuck::cast_slice(self)
+    }
+}
+
+/// Collects byte blobs for one staging buffer, at offsets aligned to 16 bytes.
 #[derive(Default)]
 struct Staging {
-    bytes: Vec<u8>,
+    blobs: Vec<(u64, Box<dyn Blob>)>,
+    len: u64,
 }
 
 impl Staging {
     fn into_buffer(self, ctx: &Arc<Context>) -> Result<Buffer, GpuError> {
-        let mut buffer = Buffer::new_upload(
-            ctx,
-            "scene staging",
-            self.bytes.len() as u64,
-            ash::vk::BufferUsageFlags::TRANSFER_SRC,
-        )?;
-        buffer.write(&self.bytes)?;
+        let mut buffer = Buffer::new_upload(ctx, "scene staging", self.len, ash::vk::BufferUsageFlags::TRANSFER_SRC)?;
+        for (offset, blob) in &self.blobs {
+            buffer.write_at(*offset, blob.bytes())?;
+        }
         Ok(buffer)
     }
 
-    fn push(&mut self, data: &[u8]) -> u64 {
-        while self.bytes.len() % 16 != 0 {
-            self.bytes.push(0);
-        }
-        let offset = self.bytes.len() as u64;
-        self.bytes.extend_from_slice(data);
+    /// Stages `blob` as it is; its offset.
+    fn push_owned(&mut self, blob: Box<dyn Blob>) -> u64 {
+        let offset = self.len.next_multiple_of(16);
+        self.len = offset + blob.bytes().len() as u64;
+        self.blobs.push((offset, blob));
         offset
+    }
+
+    /// Stages a copy of `data`; its offset.
+    fn push(&mut self, data: &[u8]) -> u64 {
+        self.push_owned(Box::new(data.to_vec()))
     }
 }
 
@@ -148,18 +163,18 @@ struct Staged {
 }
 
 impl Staged {
-    /// Creates a sampled 3D image of `extent` texels in `format` and stages `bytes` for it.
+    /// Creates a sampled 3D image of `extent` texels in `format` and stages `texels` for it.
     fn volume(
         &mut self,
         ctx: &Arc<Context>,
         label: &str,
         format: Format,
         extent: [u32; 3],
-        bytes: &[u8],
+        texels: Box<dyn Blob>,
     ) -> Result<(), GpuError> {
         let image = Image::new(ctx, ImageDesc::sampled(label, format, extent, true, 1))?;
         self.uploads
-            .push((self.images.len(), vec![(self.staging.push(bytes), extent)]));
+            .push((self.images.len(), vec![(self.staging.push_owned(texels), extent)]));
         self.images.push(image);
         Ok(())
     }
@@ -200,15 +215,8 @@ impl SceneTextures {
         let mut occupancy = super::bricks::visible_bricks(&brick_ranges, tf);
         let mut cells = vec![cell_ranges.visible(tf)];
         let mut refracting = None;
-        staged.volume(
-            ctx,
-            "volume",
-            Format::R16_UNORM,
-            vol_extent,
-            bytemuck::cast_slice(&samples),
-        )?;
 
-        let (extent, texels) = match refraction {
+        let (gradient_extent, gradient_texels) = match refraction {
             Some((eta_source, scheme)) => {
                 let (dims, g) = match eta_source {
                     Some((ev, w)) => (
@@ -232,18 +240,11 @@ impl SceneTextures {
             }
             None => ([1, 1, 1], vec![[half::f16::ZERO; 4]]),
         };
-        staged.volume(
-            ctx,
-            "gradient volume",
-            Format::R16G16B16A16_SFLOAT,
-            extent,
-            bytemuck::cast_slice(&texels),
-        )?;
 
         // The layers' reach: the index interfaces' half-width, the same in world units along
         // every axis, so that a profile that curves within it tilts the normal no more than
         // it shortens it. Without room on the device, one texel: the view samples instead.
-        let (extent, texels) = if orientation {
+        let (orientation_extent, orientation_texels) = if orientation {
             let reach = super::state::interface_half_width(volume.spacing);
             (
                 vol_extent,
@@ -252,12 +253,21 @@ impl SceneTextures {
         } else {
             ([1, 1, 1], vec![[0i16; 4]])
         };
+        // Each volume's texels go to the staging buffer as they are, once all are made.
+        staged.volume(ctx, "volume", Format::R16_UNORM, vol_extent, Box::new(samples))?;
+        staged.volume(
+            ctx,
+            "gradient volume",
+            Format::R16G16B16A16_SFLOAT,
+            gradient_extent,
+            Box::new(gradient_texels),
+        )?;
         staged.volume(
             ctx,
             "orientation volume",
             Format::R16G16B16A16_SNORM,
-            extent,
-            bytemuck::cast_slice(&texels),
+            orientation_extent,
+            Box::new(orientation_texels),
         )?;
 
         let table_texels = TableTexels::new(tf, sample_distance);
@@ -289,7 +299,14 @@ impl SceneTextures {
         )?;
         let levels = env_levels
             .iter()
-            .map(|(w, h, px)| (staged.staging.push(&halves(px.iter().flatten().copied())), [*w, *h, 1]))
+            .map(|(w, h, px)| {
+                (
+                    staged
+                        .staging
+                        .push_owned(Box::new(halves(px.iter().flatten().copied()))),
+                    [*w, *h, 1],
+                )
+            })
             .collect();
         staged.uploads.push((staged.images.len(), levels));
         staged.images.push(img);
