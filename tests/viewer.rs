@@ -708,7 +708,9 @@ fn close_button_during_refinement_shuts_down_cleanly() {
         "closed before the full frame:\n{stderr}"
     );
     // Each frame's line is followed by what the device spent of it, by pass: within the
-    // frame's time, and the passes add up to it (five numbers rounded to 0.1 ms).
+    // frame's time, and the passes add up to it (five numbers rounded to 0.1 ms); then the
+    // rest of the frame and what it copied into the scene textures (the first frame: all of
+    // them).
     let lines: Vec<&str> = stderr.lines().collect();
     let at = lines
         .iter()
@@ -723,7 +725,8 @@ fn close_button_during_refinement_shuts_down_cleanly() {
     let gpu = lines.get(at + 1).copied().unwrap_or_default();
     assert!(gpu.starts_with("gpu: "), "no GPU line after the frame's:\n{stderr}");
     let g = numbers(gpu);
-    assert_eq!(g.len(), 6, "{gpu}");
+    assert_eq!(g.len(), 7, "{gpu}");
+    assert!(g[6] > 0.0, "the first frame uploads the scene's textures: {gpu}");
     assert!(
         g[0] > 0.0 && g[0] <= frame_ms,
         "GPU {} ms of a {frame_ms} ms frame",
