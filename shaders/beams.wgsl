@@ -235,7 +235,11 @@ fn list_light_tile(t: u32, k: u32) {
     }
     // Unseen for good: no view ray left alive can read its light on this plane or a later one
     // (from plane 2 on: plane 1's tiles are listed while the view rays are being counted).
-    if (unseen_tiles_end() && (P.culling.w & 2u) != 0u && k >= 2u && light_tile_unseen(t, k)) {
+    // Tested every UNSEEN_TEST_PLANES planes: the test walks the tile's light to the last
+    // plane, and on every plane it was two fifths of the listing pass (soft light, CT head,
+    // 512²), while a tile ending up to three planes late is stepped 1.6 % more often.
+    if (unseen_tiles_end() && (P.culling.w & 2u) != 0u && k >= 2u && k % UNSEEN_TEST_PLANES == 0u
+        && light_tile_unseen(t, k)) {
         atomicStore(&light_end[t], k);
         return;
     }
@@ -271,6 +275,10 @@ fn list_light_tile(t: u32, k: u32) {
     let slot = atomicAdd(&light_args[list * 3u], 1u);
     light_lists[list * n + slot] = t;
 }
+
+// Planes between two tests of a light tile for `light_tile_unseen` (a tile unseen on one plane
+// stays unseen: ending it a few planes late only steps it more).
+const UNSEEN_TEST_PLANES: u32 = 4u;
 
 // Whether no view ray still alive can use the light of light tile t on plane k or a later
 // one, where beams keep their cells (`unseen_tiles_end`). A view sample at pixel px on plane
