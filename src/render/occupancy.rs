@@ -71,6 +71,11 @@ impl ValueRanges {
         }
     }
 
+    /// The cells along each axis.
+    pub fn cells(&self) -> [usize; 3] {
+        self.cells
+    }
+
     /// The cells whose particles absorb or show under `tf`.
     pub fn visible(&self, tf: &TransferFunctions) -> Occupancy {
         Occupancy {

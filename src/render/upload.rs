@@ -52,6 +52,22 @@ struct Untouched {
     refracting: Option<(Vec<u32>, Occupancy)>,
 }
 
+impl Untouched {
+    /// The bricks and the grids of occupied cells under `tf`: where its particles absorb or
+    /// show, and where η changes.
+    fn occupancy(&self, tf: &TransferFunctions) -> (super::bricks::Bricks, Vec<Occupancy>) {
+        let mut bricks = super::bricks::visible_bricks(&self.brick_ranges, tf);
+        let mut cells = vec![self.cell_ranges.visible(tf)];
+        if let Some((bends, refracting_cells)) = &self.refracting {
+            for (flag, bent) in bricks.flags.iter_mut().zip(bends) {
+                *flag |= bent;
+            }
+            cells.push(refracting_cells.clone());
+        }
+        (bricks, cells)
+    }
+}
+
 /// The contents of freshly created [`SceneTextures`], staged for [`SceneTextures::record_upload`].
 pub struct PendingUpload {
     staging: Arc<Buffer>,
@@ -212,8 +228,6 @@ impl SceneTextures {
         let samples = volume.normalized_u16(window);
         let brick_ranges = ValueRanges::new(&samples, vol_dims, super::bricks::BRICK);
         let cell_ranges = ValueRanges::new(&samples, vol_dims, super::occupancy::CELL);
-        let mut occupancy = super::bricks::visible_bricks(&brick_ranges, tf);
-        let mut cells = vec![cell_ranges.visible(tf)];
         let mut refracting = None;
 
         let (gradient_extent, gradient_texels) = match refraction {
@@ -225,17 +239,13 @@ impl SceneTextures {
                     ),
                     None => (volume.dims, gradient_volume(&samples, volume.dims, &tf.eta, scheme)),
                 };
-                let refracting_cells = Occupancy::refracting(&g, dims);
+                let bricks = brick_ranges.cells();
                 let mut bends = super::bricks::Bricks {
-                    flags: vec![0; occupancy.flags.len()],
-                    dims: occupancy.dims,
+                    flags: vec![0; bricks.iter().product()],
+                    dims: bricks.map(|n| n as u32),
                 };
                 super::bricks::add_refracting(&mut bends, volume.dims, &g, dims);
-                for (flag, bent) in occupancy.flags.iter_mut().zip(&bends.flags) {
-                    *flag |= bent;
-                }
-                cells.push(refracting_cells.clone());
-                refracting = Some((bends.flags, refracting_cells));
+                refracting = Some((bends.flags, Occupancy::refracting(&g, dims)));
                 ([dims[0] as u32, dims[1] as u32, dims[2] as u32], g)
             }
             None => ([1, 1, 1], vec![[half::f16::ZERO; 4]]),
@@ -354,6 +364,12 @@ impl SceneTextures {
         let particle_table = it.next().ok_or_else(missing)?;
         let medium_table = it.next().ok_or_else(missing)?;
         let env = it.next().ok_or_else(missing)?;
+        let untouched = Untouched {
+            brick_ranges,
+            cell_ranges,
+            refracting,
+        };
+        let (occupancy, cells) = untouched.occupancy(tf);
         let bricks = Buffer::new_storage_from(ctx, "bricks", bytemuck::cast_slice(&occupancy.flags))?;
         let textures = SceneTextures {
             volume,
@@ -370,11 +386,7 @@ impl SceneTextures {
             brick_dims: occupancy.dims,
             occupancy: cells,
             kept_tables: vec![table_texels],
-            untouched: Untouched {
-                brick_ranges,
-                cell_ranges,
-                refracting,
-            },
+            untouched,
         };
         let pending = PendingUpload {
             staging: Arc::new(buffer),
@@ -433,15 +445,7 @@ impl SceneTextures {
         tf: &TransferFunctions,
         sample_distance: f32,
     ) -> Result<PendingUpload, GpuError> {
-        let u = &self.untouched;
-        let mut bricks = super::bricks::visible_bricks(&u.brick_ranges, tf);
-        let mut cells = vec![u.cell_ranges.visible(tf)];
-        if let Some((bends, refracting_cells)) = &u.refracting {
-            for (flag, bent) in bricks.flags.iter_mut().zip(bends) {
-                *flag |= bent;
-            }
-            cells.push(refracting_cells.clone());
-        }
+        let (bricks, cells) = self.untouched.occupancy(tf);
         self.bricks = Buffer::new_storage_from(ctx, "bricks", bytemuck::cast_slice(&bricks.flags))?;
         self.brick_dims = bricks.dims;
         self.occupancy = cells;
@@ -587,8 +591,19 @@ impl CachedTextures {
         tf: &TransferFunctions,
         key: TexturesKey,
     ) -> Result<PendingUpload, GpuError> {
+        let sample_distance = key.sample_distance;
+        self.replace(key, |t| t.replace_tables(ctx, tf, sample_distance))
+    }
+
+    /// Brings the textures up to `key` with `update`; nothing matches until its upload has
+    /// executed.
+    fn replace(
+        &mut self,
+        key: TexturesKey,
+        update: impl FnOnce(&mut SceneTextures) -> Result<PendingUpload, GpuError>,
+    ) -> Result<PendingUpload, GpuError> {
         self.uploaded.set(false);
-        let pending = self.textures.replace_tables(ctx, tf, key.sample_distance)?;
+        let pending = update(&mut self.textures)?;
         self.key = key;
         Ok(pending)
     }
@@ -608,11 +623,9 @@ impl CachedTextures {
         tf: &TransferFunctions,
         key: TexturesKey,
     ) -> Result<PendingUpload, GpuError> {
-        self.uploaded.set(false);
         self.grown.replace(None);
-        let pending = self.textures.replace_transfer(ctx, tf, key.sample_distance)?;
-        self.key = key;
-        Ok(pending)
+        let sample_distance = key.sample_distance;
+        self.replace(key, |t| t.replace_transfer(ctx, tf, sample_distance))
     }
 
     /// The textures' occupied cells grown by `margin` (`Occupancy::grown`), kept while the
