@@ -49,14 +49,9 @@ pub fn clear_outside(tf: &TransferFunctions) -> bool {
     !visible(tf, 0.0, 0.0)
 }
 
-/// The bricks of a volume of `dims` voxels with 16-bit samples (0..65535 ↦ [0, 1]): the
-/// cells of [`BRICK`] voxels whose particles absorb or show ([`ValueRanges`]; bricks at
-/// the volume's faces also reach the zero outside it).
-pub fn bricks(samples: &[u16], dims: [usize; 3], tf: &TransferFunctions) -> Bricks {
-    visible_bricks(&ValueRanges::new(samples, dims, BRICK), tf)
-}
-
-/// The bricks whose particles absorb or show under `tf`, from the bricks' value ranges.
+/// The bricks whose particles absorb or show under `tf`, from the value ranges of the cells of
+/// [`BRICK`] voxels ([`ValueRanges`]: bricks at the volume's faces also reach the zero outside
+/// it).
 pub fn visible_bricks(ranges: &ValueRanges, tf: &TransferFunctions) -> Bricks {
     let cells = ranges.visible(tf);
     Bricks {
@@ -98,6 +93,11 @@ pub fn add_refracting(bricks: &mut Bricks, dims: [usize; 3], texels: &[[half::f1
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The bricks of a volume of `dims` voxels with 16-bit samples.
+    fn bricks(samples: &[u16], dims: [usize; 3], tf: &TransferFunctions) -> Bricks {
+        visible_bricks(&ValueRanges::new(samples, dims, BRICK), tf)
+    }
     use crate::transfer::{ColorRamp, Curve};
 
     fn tf(opacity: Vec<[f32; 2]>, medium: Vec<[f32; 4]>) -> TransferFunctions {

@@ -24,9 +24,8 @@ pub struct Occupancy {
     pub edge: usize,
 }
 
-/// The range of the 16-bit samples that each cell of `edge` voxels reaches, as
-/// [`Occupancy::visible`] takes it (the cells at the volume's faces reach the value 0 outside
-/// it; lo > hi: none). No transfer function changes it: a transfer-function edit finds the
+/// The range of the 16-bit samples (0..65535 ↦ [0, 1]) that each cell of `edge` voxels
+/// reaches (the cells at the volume's faces reach the value 0 outside it; lo > hi: none). No transfer function changes it: a transfer-function edit finds the
 /// occupied cells from it without reading the volume again.
 #[derive(Clone, Debug)]
 pub struct ValueRanges {
@@ -40,29 +39,24 @@ impl ValueRanges {
     pub fn new(samples: &[u16], dims: [usize; 3], edge: usize) -> ValueRanges {
         let [nx, ny, nz] = dims;
         let reach = |i: usize, n: usize| reach(i, n, edge);
-        let cells = dims.map(|d| d.div_ceil(edge).max(1));
-        let ranges = (0..cells[0] * cells[1] * cells[2])
-            .into_par_iter()
-            .map(|c| {
-                let [cx, cy, cz] = [c % cells[0], (c / cells[0]) % cells[1], c / (cells[0] * cells[1])];
-                let (mut lo, mut hi) = (u16::MAX, 0u16);
-                let xs = reach(cx, nx);
-                for z in reach(cz, nz) {
-                    for y in reach(cy, ny) {
-                        let row = (z * ny + y) * nx;
-                        for &v in &samples[row + xs.start..row + xs.end] {
-                            lo = lo.min(v);
-                            hi = hi.max(v);
-                        }
+        let (cells, ranges) = per_cell(dims, edge, |[cx, cy, cz]| {
+            let (mut lo, mut hi) = (u16::MAX, 0u16);
+            let xs = reach(cx, nx);
+            for z in reach(cz, nz) {
+                for y in reach(cy, ny) {
+                    let row = (z * ny + y) * nx;
+                    for &v in &samples[row + xs.start..row + xs.end] {
+                        lo = lo.min(v);
+                        hi = hi.max(v);
                     }
                 }
-                let face = |i: usize, n: usize| i == 0 || (i + 1) * edge >= n;
-                if face(cx, nx) || face(cy, ny) || face(cz, nz) {
-                    lo = 0;
-                }
-                [lo, hi]
-            })
-            .collect();
+            }
+            let face = |i: usize, n: usize| i == 0 || (i + 1) * edge >= n;
+            if face(cx, nx) || face(cy, ny) || face(cz, nz) {
+                lo = 0;
+            }
+            [lo, hi]
+        });
         ValueRanges {
             ranges,
             cells,
@@ -91,6 +85,17 @@ impl ValueRanges {
     }
 }
 
+/// The cells of `edge` voxels over `voxels` along each axis, and `cell` of each (x fastest),
+/// computed in parallel.
+fn per_cell<T: Send>(voxels: [usize; 3], edge: usize, cell: impl Fn([usize; 3]) -> T + Sync) -> ([usize; 3], Vec<T>) {
+    let cells = voxels.map(|d| d.div_ceil(edge).max(1));
+    let values = (0..cells[0] * cells[1] * cells[2])
+        .into_par_iter()
+        .map(|c| cell([c % cells[0], (c / cells[0]) % cells[1], c / (cells[0] * cells[1])]))
+        .collect();
+    (cells, values)
+}
+
 /// The voxel range of cell `i` of `edge` voxels along an axis of `n` voxels, one voxel wider
 /// on each side (what trilinear sampling inside the cell reaches).
 fn reach(i: usize, n: usize, edge: usize) -> std::ops::Range<usize> {
@@ -99,23 +104,13 @@ fn reach(i: usize, n: usize, edge: usize) -> std::ops::Range<usize> {
 
 impl Occupancy {
     fn build(voxels: [usize; 3], edge: usize, cell: impl Fn([usize; 3]) -> bool + Sync) -> Occupancy {
-        let cells = voxels.map(|d| d.div_ceil(edge).max(1));
-        let flags = (0..cells[0] * cells[1] * cells[2])
-            .into_par_iter()
-            .map(|c| cell([c % cells[0], (c / cells[0]) % cells[1], c / (cells[0] * cells[1])]))
-            .collect();
+        let (cells, flags) = per_cell(voxels, edge, cell);
         Occupancy {
             flags,
             cells,
             voxels,
             edge,
         }
-    }
-
-    /// The cells of `edge` voxels whose particles absorb or show (16-bit samples, 0..65535 ↦
-    /// [0, 1]); cells at the volume's faces also reach the value 0 outside it.
-    pub fn visible(samples: &[u16], dims: [usize; 3], tf: &TransferFunctions, edge: usize) -> Occupancy {
-        ValueRanges::new(samples, dims, edge).visible(tf)
     }
 
     /// The cells of [`CELL`] voxels where η changes: a texel of the gradient volume
@@ -507,7 +502,7 @@ mod tests {
             albedo: None,
             anisotropy: None,
         };
-        let v = Occupancy::visible(&samples, dims, &tf, CELL);
+        let v = ValueRanges::new(&samples, dims, CELL).visible(&tf);
         // Voxel 9 is in cell 2 and within a voxel of none other (cell 2 spans 8..12).
         assert_eq!(v.cells, [4, 4, 4]);
         assert_eq!(v.flags.iter().filter(|f| **f).count(), 1);
