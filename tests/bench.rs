@@ -251,8 +251,26 @@ fn tiny_speed_bench_counts_the_memory_it_reports() {
             .ends_with(",light_ms,view_ms,listing_ms,finish_ms"),
         "{csv}"
     );
+    // An edit of the opacity curve keeps the volume images: only the two pre-integrated tables
+    // (16-bit rgba, TABLE_SIZE² texels each) are copied in, and the render takes at least its
+    // GPU part.
+    let edit = fit.edit.expect("the bench times edits");
+    let tables = 2 * (caustica::transfer::TABLE_SIZE * caustica::transfer::TABLE_SIZE * 8) as u64;
+    assert_eq!((edit.size, edit.upload_bytes), (16, tables), "{edit:?}");
+    assert!(
+        edit.wall_ms.median >= edit.gpu_ms.median && edit.gpu_ms.median > 0.0,
+        "{edit:?}"
+    );
     let fit_csv = std::fs::read_to_string(&report.fit_csv).unwrap();
     assert_eq!(fit_csv.lines().count(), 2, "{fit_csv}");
+    assert!(
+        fit_csv.lines().next().unwrap().ends_with(",edit_upload_bytes"),
+        "{fit_csv}"
+    );
+    assert!(
+        fit_csv.lines().nth(1).unwrap().ends_with(&format!(",{tables}")),
+        "{fit_csv}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -160,6 +160,24 @@ pub struct SpeedFit {
     /// included): the intercept (ms per plane at no pixels) and the slope in ns per pixel-plane.
     pub intercept_ms_per_plane: Option<f64>,
     pub ns_per_pixel_plane: Option<f64>,
+    /// The render after an edit of the opacity curve at the smallest viewport of the fit (the
+    /// viewer's editor: the volume images are kept), set by [`run`].
+    pub edit: Option<EditTiming>,
+}
+
+/// Renders after edits of the transfer functions that keep η: what the viewer waits for after
+/// each change in its editor, past the GPU's part of the frame.
+#[derive(Clone, Copy, Debug)]
+pub struct EditTiming {
+    /// Viewport edge, pixels.
+    pub size: u32,
+    /// The whole `Renderer::render` call after each edit.
+    pub wall_ms: Spread,
+    /// Its GPU part (timestamp queries).
+    pub gpu_ms: Spread,
+    /// Bytes copied into the scene textures by the render after an edit (the largest): the
+    /// pre-integrated tables where the volume images are kept.
+    pub upload_bytes: u64,
 }
 
 /// Least-squares line through the points: (intercept, slope); None without two distinct x.
@@ -199,6 +217,7 @@ impl SpeedFit {
             fixed_ms_per_plane: mine.iter().find(|r| r.tiny).map(|r| r.ms_per_plane()),
             intercept_ms_per_plane: line.map(|l| l.0),
             ns_per_pixel_plane: line.map(|l| l.1 * 1e6),
+            edit: None,
         }
     }
 }
@@ -264,6 +283,35 @@ fn measure(
     })
 }
 
+/// Renders at `size`² after each of `edits` (at least 3) edits of the opacity curve, which
+/// alternately scale its values by 0.9 and back: a new table pair each time, nothing else.
+fn measure_edits(
+    renderer: &mut Renderer,
+    prepared: &mut PreparedScene,
+    size: u32,
+    edits: u32,
+) -> Result<EditTiming, BenchError> {
+    let req = RenderRequest::new(size, size);
+    let (mut wall, mut gpu, mut upload) = (Vec::new(), Vec::new(), 0u64);
+    let original = prepared.tf.opacity.clone();
+    for i in 0..edits.max(3) {
+        let factor = if i % 2 == 0 { 0.9 } else { 1.0 };
+        prepared.tf.opacity.points = original.points.iter().map(|&[x, a]| [x, a * factor]).collect();
+        let start = Instant::now();
+        let out = renderer.render(prepared, &req)?;
+        wall.push(start.elapsed().as_secs_f64() * 1e3);
+        gpu.push(out.stats.gpu_ms);
+        upload = upload.max(out.stats.upload_bytes);
+    }
+    prepared.tf.opacity = original;
+    Ok(EditTiming {
+        size,
+        wall_ms: Spread::of(wall),
+        gpu_ms: Spread::of(gpu),
+        upload_bytes: upload,
+    })
+}
+
 /// Runs `plan` on the device of `ctx` and writes `speed.md`, `speed.csv` and `speed-fit.csv`
 /// into `out`. Each scene gets one untimed frame at the smallest size first (upload of its
 /// textures, pipeline creation), so the timed frames measure the sweep alone.
@@ -289,6 +337,7 @@ pub fn run(ctx: Arc<Context>, plan: &SpeedPlan, out: &Path, progress: bool) -> R
     });
     let mut renderer = Renderer::new(ctx.clone())?;
     let mut rows = Vec::new();
+    let mut edits = Vec::new();
     for s in &plan.scenes {
         let mut prepared = PreparedScene::load(&s.scene)?;
         crate::input::fit_to_device(&mut prepared, &ctx, true)?;
@@ -303,11 +352,26 @@ pub fn run(ctx: Arc<Context>, plan: &SpeedPlan, out: &Path, progress: bool) -> R
                 b.inc(1);
             }
         }
+        // At the smallest size of the fit: at the tiny one the occupied cells are grown by
+        // margins of whole pixels, a quarter of the volume, which no viewer level has.
+        let edit_size = plan.sizes.iter().copied().min().unwrap_or(smallest);
+        if let Some(b) = &bar {
+            b.set_message(format!("{}: transfer-function edits at {edit_size}²", s.name));
+        }
+        edits.push(measure_edits(&mut renderer, &mut prepared, edit_size, plan.frames)?);
     }
     if let Some(b) = bar {
         b.finish_and_clear();
     }
-    let fits: Vec<SpeedFit> = plan.scenes.iter().map(|s| SpeedFit::of(&s.name, &rows)).collect();
+    let fits: Vec<SpeedFit> = plan
+        .scenes
+        .iter()
+        .zip(edits)
+        .map(|(s, edit)| SpeedFit {
+            edit: Some(edit),
+            ..SpeedFit::of(&s.name, &rows)
+        })
+        .collect();
     let device = ctx.info.name.clone();
     let markdown = out.join("speed.md");
     let csv = out.join("speed.csv");

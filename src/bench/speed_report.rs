@@ -94,19 +94,30 @@ pub fn write_markdown(path: &Path, rows: &[SpeedRow], fits: &[SpeedFit], c: &Con
         );
     }
     s.push_str(
-        "Intercept and ns per pixel-plane: a straight line through ms per plane against viewport pixels, every size.\n\n",
+        "Intercept and ns per pixel-plane: a straight line through ms per plane against viewport pixels, every size. \
+         Edit: the render after an edit of the opacity curve at the smallest viewport of the fit, as in the viewer's editor \
+         (the volume images kept): median wall ms of the render call (its GPU part; the rest is the CPU's), and the MiB copied in.\n\n",
     );
-    s.push_str("| scene | exponent | fixed ms per plane | intercept ms per plane | ns per pixel-plane |\n");
-    s.push_str("|---|---|---|---|---|\n");
+    s.push_str("| scene | exponent | fixed ms per plane | intercept ms per plane | ns per pixel-plane | edit ms (GPU) | edit upload MiB |\n");
+    s.push_str("|---|---|---|---|---|---|---|\n");
     for f in fits {
+        let (edit, upload) = match &f.edit {
+            Some(e) => (
+                format!("{:.1} ({:.1}) at {}²", e.wall_ms.median, e.gpu_ms.median, e.size),
+                format!("{:.2}", mib(e.upload_bytes)),
+            ),
+            None => ("–".to_string(), "–".to_string()),
+        };
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} |",
             f.scene,
             opt(f.exponent, 2),
             opt(f.fixed_ms_per_plane, 3),
             opt(f.intercept_ms_per_plane, 3),
             opt(f.ns_per_pixel_plane, 1),
+            edit,
+            upload,
         );
     }
     std::fs::write(path, s).map_err(|e| e.to_string())
@@ -151,20 +162,33 @@ pub fn write_csv(path: &Path, rows: &[SpeedRow]) -> Result<(), String> {
 }
 
 pub fn write_fit_csv(path: &Path, fits: &[SpeedFit]) -> Result<(), String> {
-    let mut s = String::from("scene,exponent,fixed_ms_per_plane,intercept_ms_per_plane,ns_per_pixel_plane\n");
+    let mut s = String::from(
+        "scene,exponent,fixed_ms_per_plane,intercept_ms_per_plane,ns_per_pixel_plane,\
+         edit_viewport,edit_wall_ms_median,edit_gpu_ms_median,edit_upload_bytes\n",
+    );
     let field = |v: Option<f64>| {
         v.filter(|v| v.is_finite())
             .map_or_else(String::new, |v| format!("{v:.5}"))
     };
     for f in fits {
+        let edit = f.edit.map_or_else(
+            || ",,,".to_string(),
+            |e| {
+                format!(
+                    "{},{:.3},{:.3},{}",
+                    e.size, e.wall_ms.median, e.gpu_ms.median, e.upload_bytes
+                )
+            },
+        );
         let _ = writeln!(
             s,
-            "{},{},{},{},{}",
+            "{},{},{},{},{},{}",
             f.scene,
             field(f.exponent),
             field(f.fixed_ms_per_plane),
             field(f.intercept_ms_per_plane),
             field(f.ns_per_pixel_plane),
+            edit,
         );
     }
     std::fs::write(path, s).map_err(|e| e.to_string())
