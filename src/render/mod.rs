@@ -215,53 +215,6 @@ impl Renderer {
         &self.ctx
     }
 
-    /// The sweep's pipelines for these passes, in their order: those not built before are
-    /// specialised, then compiled side by side. Compiling is most of a render's setup on a CPU
-    /// driver, which turns each pipeline into machine code when it is created (the CT head's
-    /// seven take about half a second on lavapipe), and the pipelines are independent.
-    fn pipelines<const N: usize>(
-        &mut self,
-        passes: [Pass; N],
-        precision: Precision,
-        features: Features,
-        debug: DebugView,
-        safeguards_off: u32,
-    ) -> Result<[Arc<ComputePipeline>; N], RenderError> {
-        let key = |pass: Pass| (pass, precision, features, debug, safeguards_off);
-        let mut missing = Vec::new();
-        for pass in passes {
-            if self.pipelines.contains_key(&key(pass)) || missing.iter().any(|(p, _, _)| *p == pass) {
-                continue;
-            }
-            let source = match self.sources.entry(pass.file()) {
-                std::collections::hash_map::Entry::Occupied(e) => e.into_mut(),
-                std::collections::hash_map::Entry::Vacant(e) => e.insert(pass.parse()?),
-            };
-            let mut constants = features.constants(debug, precision);
-            for c in constants.iter_mut().filter(|c| c.0 == "SAFEGUARDS_OFF") {
-                c.1 = safeguards_off as f64;
-            }
-            let compiled = source.specialise(pass.entry(), &constants)?;
-            let label = format!(
-                "{}:{} [{} {}]",
-                pass.file(),
-                pass.entry(),
-                features.describe(),
-                precision.name()
-            );
-            missing.push((pass, label, compiled));
-        }
-        let ctx = &self.ctx;
-        let built = missing
-            .par_iter()
-            .map(|(_, label, compiled)| ComputePipeline::new(ctx, label, compiled))
-            .collect::<Result<Vec<_>, _>>()?;
-        for ((pass, _, _), p) in missing.iter().zip(built) {
-            self.pipelines.insert(key(*pass), Arc::new(p));
-        }
-        Ok(passes.map(|pass| self.pipelines[&key(pass)].clone()))
-    }
-
     /// Renders one image (or a debug buffer) of `prepared`.
     ///
     /// Out of device memory is retried: first with 16-bit buffers when the scene asked for
@@ -313,25 +266,110 @@ impl Renderer {
         precision: Precision,
     ) -> Result<RenderOutput, RenderError> {
         let features = prepared.features();
-        let off = req.safeguards_off;
-        // In the order `state::run` indexes them.
-        let pipelines = self.pipelines(Pass::ALL, precision, features, req.debug_view, off)?;
         if features.lbm && self.lbm.is_none() {
             self.lbm = Some(lbm::Pipelines::new(&self.ctx)?);
         }
-        state::run(
-            &self.ctx,
-            prepared,
-            req,
-            features,
+        let key = PipelineKey {
             precision,
-            state::Passes {
-                sweep: &pipelines,
-                lbm: self.lbm.as_ref().filter(|_| features.lbm),
-            },
-            &mut self.textures,
-        )
+            features,
+            debug: req.debug_view,
+            safeguards_off: req.safeguards_off,
+        };
+        let Renderer {
+            ctx,
+            sources,
+            pipelines: cache,
+            textures,
+            lbm,
+        } = self;
+        let missing: Vec<Pass> = Pass::ALL
+            .into_iter()
+            .filter(|&pass| !cache.contains_key(&key.of(pass)))
+            .collect();
+        // Pipelines not built before are compiled beside the scene's setup on the CPU (the
+        // textures, the light tiles' spans), which needs none of them: on a CPU driver each
+        // takes about as long, and either leaves a core idle now and then.
+        std::thread::scope(|scope| {
+            let ctx_ref: &Arc<Context> = ctx;
+            let build = (!missing.is_empty()).then(|| scope.spawn(move || compile(ctx_ref, sources, &missing, key)));
+            let sweep = move || -> Result<[Arc<ComputePipeline>; 7], RenderError> {
+                if let Some(handle) = build {
+                    let built = handle
+                        .join()
+                        .map_err(|_| RenderError::Setup("internal: the pipelines' compilation panicked".into()))??;
+                    for (pass, p) in built {
+                        cache.insert(key.of(pass), Arc::new(p));
+                    }
+                }
+                // In the order `state::run` indexes them.
+                Ok(Pass::ALL.map(|pass| cache[&key.of(pass)].clone()))
+            };
+            state::run(
+                ctx,
+                prepared,
+                req,
+                features,
+                precision,
+                state::Passes {
+                    sweep: Box::new(sweep),
+                    lbm: lbm.as_ref().filter(|_| features.lbm),
+                },
+                textures,
+            )
+        })
     }
+}
+
+/// What a sweep pipeline is specialised for, beside its pass.
+#[derive(Clone, Copy)]
+struct PipelineKey {
+    precision: Precision,
+    features: Features,
+    debug: DebugView,
+    safeguards_off: u32,
+}
+
+impl PipelineKey {
+    fn of(&self, pass: Pass) -> (Pass, Precision, Features, DebugView, u32) {
+        (pass, self.precision, self.features, self.debug, self.safeguards_off)
+    }
+}
+
+/// The sweep's pipelines for `passes`: each specialised, then compiled side by side. Compiling
+/// is most of a render's setup on a CPU driver, which turns each pipeline into machine code
+/// when it is created (the CT head's seven take about half a second on lavapipe), and the
+/// pipelines are independent.
+fn compile(
+    ctx: &Arc<Context>,
+    sources: &mut HashMap<&'static str, ShaderSource>,
+    passes: &[Pass],
+    key: PipelineKey,
+) -> Result<Vec<(Pass, ComputePipeline)>, RenderError> {
+    let mut specialised = Vec::new();
+    for &pass in passes {
+        let source = match sources.entry(pass.file()) {
+            std::collections::hash_map::Entry::Occupied(e) => e.into_mut(),
+            std::collections::hash_map::Entry::Vacant(e) => e.insert(pass.parse()?),
+        };
+        let mut constants = key.features.constants(key.debug, key.precision);
+        for c in constants.iter_mut().filter(|c| c.0 == "SAFEGUARDS_OFF") {
+            c.1 = key.safeguards_off as f64;
+        }
+        let compiled = source.specialise(pass.entry(), &constants)?;
+        let label = format!(
+            "{}:{} [{} {}]",
+            pass.file(),
+            pass.entry(),
+            key.features.describe(),
+            key.precision.name()
+        );
+        specialised.push((pass, label, compiled));
+    }
+    let built = specialised
+        .par_iter()
+        .map(|(_, label, compiled)| ComputePipeline::new(ctx, label, compiled))
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(specialised.into_iter().map(|(pass, _, _)| pass).zip(built).collect())
 }
 
 /// Environment parameters: (rgb background, 1 when an environment map is used).

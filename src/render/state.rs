@@ -477,7 +477,9 @@ impl State {
 /// The pipelines of one render: the sweep's passes (`Pass::ALL` in order), and the lattice's
 /// when the scene uses it.
 pub(super) struct Passes<'a> {
-    pub sweep: &'a [Arc<ComputePipeline>; 7],
+    /// Gives the sweep's pipelines; asked once everything else of the render is set up, so
+    /// that they can be compiled meanwhile.
+    pub sweep: Box<dyn FnOnce() -> Result<[Arc<ComputePipeline>; 7], RenderError> + 'a>,
     pub lbm: Option<&'a super::lbm::Pipelines>,
 }
 
@@ -490,7 +492,7 @@ pub(super) fn run(
     passes: Passes,
     cache: &mut Option<CachedTextures>,
 ) -> Result<RenderOutput, RenderError> {
-    let Passes { sweep: pipelines, lbm } = passes;
+    let Passes { sweep, lbm } = passes;
     let (w, h) = (req.width, req.height);
     let max_2d = ctx.limits().max_image_dimension2_d;
     if w == 0 || h == 0 || w > max_2d || h > max_2d {
@@ -707,8 +709,9 @@ pub(super) fn run(
     // listing passes, and at its end (`RenderStats::pass_ms`).
     let ts = Timestamps::new(ctx, 2 + 3 * PLANES_PER_SUBMIT)?;
 
+    let pipelines = sweep()?;
     let mut sets = Vec::new();
-    for p in pipelines {
+    for p in &pipelines {
         let mut set = DescriptorSet::new(ctx, p, &p.label)?;
         let t = &cached.textures;
         let mut writes = vec![
