@@ -28,6 +28,8 @@ pub enum Request {
         width: u32,
         height: u32,
         cancel: Arc<AtomicBool>,
+        /// Time each pass apart (the frame log prints them).
+        pass_timings: bool,
     },
     /// A full-quality offscreen render written to `path` (PNG or EXR).
     Screenshot {
@@ -205,6 +207,7 @@ fn handle(
             width,
             height,
             cancel,
+            pass_timings,
         } => {
             if cancel.load(Ordering::Relaxed) {
                 send(Reply::Cancelled { job });
@@ -214,6 +217,7 @@ fn handle(
             let result = set_scene(renderer, prepared, allow_downsample, *scene, send).and_then(|()| {
                 let mut req = RenderRequest::new(width, height);
                 req.cancel = Some(cancel);
+                req.pass_timings = pass_timings;
                 // Accumulation passes move the planes and the light grid (pass 0 does not).
                 req.jitter = jitter_sequence(job.pass, ACCUMULATE);
                 renderer.render(prepared, &req)
@@ -287,6 +291,7 @@ mod tests {
             width: 40,
             height: 30,
             cancel: Arc::new(AtomicBool::new(true)),
+            pass_timings: false,
         });
         for ext in ["png", "exr"] {
             worker.send(Request::Screenshot {
@@ -377,6 +382,7 @@ mod tests {
             width: 32,
             height: 24,
             cancel: Arc::new(AtomicBool::new(false)),
+            pass_timings: false,
         });
         let mut bars = None;
         let image = loop {
@@ -403,6 +409,7 @@ mod tests {
                 width: 32,
                 height: 24,
                 cancel: Arc::new(AtomicBool::new(false)),
+                pass_timings: false,
             });
             match worker.replies.recv_timeout(Duration::from_secs(120)).expect("a reply") {
                 Reply::Failed { message, .. } => assert!(message.contains("t2.nrrd"), "{message}"),

@@ -125,6 +125,9 @@ pub struct SpeedRow {
     /// Median GPU time per frame of each pass (`RenderStats::pass_ms`: light, view, listing
     /// and clearing, finish).
     pub pass_ms: [f64; 4],
+    /// GPU time per frame of the frames the passes were timed in (pass timings on: the
+    /// timestamps between the passes add to it).
+    pub pass_frames_ms: Spread,
     pub light_grid: [u32; 2],
     /// Light-tile steps (`RenderStats::light_steps`), where light tiles are listed.
     pub light_steps: Option<u64>,
@@ -257,12 +260,23 @@ fn measure(
         let out = renderer.render(prepared, &req)?;
         wall.push(start.elapsed().as_secs_f64() * 1e3);
         gpu.push(out.stats.gpu_ms);
-        for (p, ms) in passes.iter_mut().zip(out.stats.pass_ms) {
-            p.push(ms);
-        }
         peak.device_local = peak.device_local.max(out.stats.peak_memory.device_local);
         peak.host_visible = peak.host_visible.max(out.stats.peak_memory.host_visible);
         last = Some(out.stats);
+    }
+    // The passes' times from frames of their own: the timestamps between the passes take
+    // time of their own on a CPU driver, which the frames above are timed without.
+    let timed = RenderRequest {
+        pass_timings: true,
+        ..req.clone()
+    };
+    let mut passes_total = Vec::new();
+    for _ in 0..frames {
+        let out = renderer.render(prepared, &timed)?;
+        for (p, ms) in passes.iter_mut().zip(out.stats.pass_ms) {
+            p.push(ms);
+        }
+        passes_total.push(out.stats.gpu_ms);
     }
     let s = last.ok_or_else(|| BenchError::Plan("needs at least one frame".into()))?;
     Ok(SpeedRow {
@@ -274,6 +288,7 @@ fn measure(
         gpu_ms: Spread::of(gpu),
         wall_ms: Spread::of(wall),
         pass_ms: passes.map(|mut p| median(&mut p)),
+        pass_frames_ms: Spread::of(passes_total),
         light_grid: s.light_grid,
         light_steps: s.light_steps,
         footprint: s.rect,

@@ -705,8 +705,8 @@ pub(super) fn run(
     } else {
         None
     };
-    // A timestamp at the start of each submission, after each plane's light, view and
-    // listing passes, and at its end (`RenderStats::pass_ms`).
+    // A timestamp at the start of each submission and at its end, and with pass timings
+    // after each plane's light, view and listing passes (`RenderStats::pass_ms`).
     let ts = Timestamps::new(ctx, 2 + 3 * PLANES_PER_SUBMIT)?;
 
     let pipelines = sweep()?;
@@ -838,8 +838,10 @@ pub(super) fn run(
             } else if plane < view.planes && window > 0 {
                 r.dispatch(&pipelines[1], &sets[1], p, groups(window))?;
             }
-            r.timestamp(&ts, stamps);
-            stamps += 1;
+            if req.pass_timings {
+                r.timestamp(&ts, stamps);
+                stamps += 1;
+            }
             let view_now = !diagnoses_light && view_pass(plane);
             if view_now {
                 let v = push(plane, plane - last_view, view_passes);
@@ -851,8 +853,10 @@ pub(super) fn run(
                     r.dispatch(&pipelines[2], &sets[2], p, groups(layout.view_groups))?;
                 }
             }
-            r.timestamp(&ts, stamps);
-            stamps += 1;
+            if req.pass_timings {
+                r.timestamp(&ts, stamps);
+                stamps += 1;
+            }
             // Clears the ring for the next plane's deposits and lists the next view pass's
             // tiles (and the next plane's light tiles, from this plane's beams).
             if layout.light_lists || features.refraction {
@@ -879,8 +883,10 @@ pub(super) fn run(
                 r.fill_range(light_acc, slot * bytes, bytes, 0)?;
             }
             r.compute_to_indirect();
-            r.timestamp(&ts, stamps);
-            stamps += 1;
+            if req.pass_timings {
+                r.timestamp(&ts, stamps);
+                stamps += 1;
+            }
             plane += 1;
         }
         let last = plane > dispatches;
@@ -902,13 +908,15 @@ pub(super) fn run(
         stamps += 1;
         r.submit_and_wait()?;
         cached.uploaded();
-        // Light, view and listing per plane, then the finish pass: the last interval (nothing
-        // before the last submission's end).
+        // With pass timings: light, view and listing per plane, then the finish pass: the last
+        // interval (nothing before the last submission's end). Else the submission whole.
         let intervals = ts.read_first_ms(stamps)?;
         let finish = intervals.len() - 1;
         for (i, ms) in intervals.iter().enumerate() {
-            let pass = if i == finish { 3 } else { i % 3 };
-            pass_ms[pass] += ms;
+            if req.pass_timings {
+                let pass = if i == finish { 3 } else { i % 3 };
+                pass_ms[pass] += ms;
+            }
             gpu_ms += ms;
         }
         if let Some(b) = &bar {
