@@ -93,12 +93,12 @@ pub fn add_refracting(bricks: &mut Bricks, dims: [usize; 3], texels: &[[half::f1
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::transfer::{ColorRamp, Curve};
 
     /// The bricks of a volume of `dims` voxels with 16-bit samples.
     fn bricks(samples: &[u16], dims: [usize; 3], tf: &TransferFunctions) -> Bricks {
         visible_bricks(&ValueRanges::new(samples, dims, BRICK), tf)
     }
-    use crate::transfer::{ColorRamp, Curve};
 
     fn tf(opacity: Vec<[f32; 2]>, medium: Vec<[f32; 4]>) -> TransferFunctions {
         TransferFunctions {

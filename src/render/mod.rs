@@ -197,7 +197,7 @@ pub struct Renderer {
     ctx: Arc<Context>,
     /// Parsed sources by file (the light and view passes share one).
     sources: HashMap<&'static str, ShaderSource>,
-    pipelines: HashMap<(Pass, Precision, Features, DebugView, u32), Arc<ComputePipeline>>,
+    pipelines: HashMap<(Pass, PipelineKey), Arc<ComputePipeline>>,
     /// Scene textures of the last render, reused while the volume, transfer functions,
     /// sample distance and environment stay the same.
     textures: Option<upload::CachedTextures>,
@@ -292,25 +292,25 @@ impl Renderer {
         } = self;
         let missing: Vec<Pass> = Pass::ALL
             .into_iter()
-            .filter(|&pass| !cache.contains_key(&key.of(pass)))
+            .filter(|&pass| !cache.contains_key(&(pass, key)))
             .collect();
         // Pipelines not built before are compiled beside the scene's setup on the CPU (the
         // textures, the light tiles' spans), which needs none of them: on a CPU driver each
         // takes about as long, and either leaves a core idle now and then.
+        let ctx: &Arc<Context> = ctx;
         std::thread::scope(|scope| {
-            let ctx_ref: &Arc<Context> = ctx;
-            let build = (!missing.is_empty()).then(|| scope.spawn(move || compile(ctx_ref, sources, &missing, key)));
+            let build = (!missing.is_empty()).then(|| scope.spawn(move || compile(ctx, sources, &missing, key)));
             let sweep = move || -> Result<[Arc<ComputePipeline>; 7], RenderError> {
                 if let Some(handle) = build {
                     let built = handle
                         .join()
                         .map_err(|_| RenderError::Setup("internal: the pipelines' compilation panicked".into()))??;
                     for (pass, p) in built {
-                        cache.insert(key.of(pass), Arc::new(p));
+                        cache.insert((pass, key), Arc::new(p));
                     }
                 }
                 // In the order `state::run` indexes them.
-                Ok(Pass::ALL.map(|pass| cache[&key.of(pass)].clone()))
+                Ok(Pass::ALL.map(|pass| cache[&(pass, key)].clone()))
             };
             state::run(
                 ctx,
@@ -329,18 +329,12 @@ impl Renderer {
 }
 
 /// What a sweep pipeline is specialised for, beside its pass.
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, PartialEq, Eq, Hash)]
 struct PipelineKey {
     precision: Precision,
     features: Features,
     debug: DebugView,
     safeguards_off: u32,
-}
-
-impl PipelineKey {
-    fn of(&self, pass: Pass) -> (Pass, Precision, Features, DebugView, u32) {
-        (pass, self.precision, self.features, self.debug, self.safeguards_off)
-    }
 }
 
 /// The sweep's pipelines for `passes`: each specialised, then compiled side by side. Compiling

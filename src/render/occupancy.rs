@@ -25,8 +25,9 @@ pub struct Occupancy {
 }
 
 /// The range of the 16-bit samples (0..65535 ↦ [0, 1]) that each cell of `edge` voxels
-/// reaches (the cells at the volume's faces reach the value 0 outside it; lo > hi: none). No transfer function changes it: a transfer-function edit finds the
-/// occupied cells from it without reading the volume again.
+/// reaches (the cells at the volume's faces reach the value 0 outside it; lo > hi: none). No
+/// transfer function changes it: a transfer-function edit finds the occupied cells from it
+/// without reading the volume again.
 #[derive(Clone, Debug)]
 pub struct ValueRanges {
     ranges: Vec<[u16; 2]>,

@@ -207,6 +207,15 @@ fn tile_groups(view_groups: u32, light_tiles: u32) -> u32 {
 
 /// Workgroups of a dispatch laid out in rows of `MAX_GROUPS_PER_ROW` (the shaders linearise
 /// them with the same width).
+/// With pass timings, a timestamp after a pass of the plane (`RenderStats::pass_ms`); the
+/// next one is `stamps`.
+fn pass_stamp<'r>(r: &mut Recorder<'r>, ts: &'r Timestamps, stamps: &mut u32, pass_timings: bool) {
+    if pass_timings {
+        r.timestamp(ts, *stamps);
+        *stamps += 1;
+    }
+}
+
 fn groups(n: u32) -> [u32; 3] {
     [n.clamp(1, MAX_GROUPS_PER_ROW), n.div_ceil(MAX_GROUPS_PER_ROW).max(1), 1]
 }
@@ -838,10 +847,7 @@ pub(super) fn run(
             } else if plane < view.planes && window > 0 {
                 r.dispatch(&pipelines[1], &sets[1], p, groups(window))?;
             }
-            if req.pass_timings {
-                r.timestamp(&ts, stamps);
-                stamps += 1;
-            }
+            pass_stamp(&mut r, &ts, &mut stamps, req.pass_timings);
             let view_now = !diagnoses_light && view_pass(plane);
             if view_now {
                 let v = push(plane, plane - last_view, view_passes);
@@ -853,10 +859,7 @@ pub(super) fn run(
                     r.dispatch(&pipelines[2], &sets[2], p, groups(layout.view_groups))?;
                 }
             }
-            if req.pass_timings {
-                r.timestamp(&ts, stamps);
-                stamps += 1;
-            }
+            pass_stamp(&mut r, &ts, &mut stamps, req.pass_timings);
             // Clears the ring for the next plane's deposits and lists the next view pass's
             // tiles (and the next plane's light tiles, from this plane's beams).
             if layout.light_lists || features.refraction {
@@ -883,10 +886,7 @@ pub(super) fn run(
                 r.fill_range(light_acc, slot * bytes, bytes, 0)?;
             }
             r.compute_to_indirect();
-            if req.pass_timings {
-                r.timestamp(&ts, stamps);
-                stamps += 1;
-            }
+            pass_stamp(&mut r, &ts, &mut stamps, req.pass_timings);
             plane += 1;
         }
         let last = plane > dispatches;

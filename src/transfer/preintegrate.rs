@@ -22,6 +22,7 @@ const CELLS_PER_ENTRY: usize = 4;
 /// Cells of the fine 1D grid on which the transfer functions are averaged.
 const FINE_CELLS: usize = (TABLE_SIZE - 1) * CELLS_PER_ENTRY;
 
+/// Samples per fine cell when averaging the transfer functions over it.
 const CELL_SAMPLES: usize = 8;
 
 /// The pre-integrated tables, `TABLE_SIZE²` entries each, row = back value b, column = front f.
