@@ -342,6 +342,17 @@ fn accumulate_with_a_debug_view_or_zero_renders_is_a_usage_error() {
 }
 
 #[test]
+fn pass_timings_without_timings_is_a_usage_error() {
+    let s = Scratch::new("pass-timings");
+    render_fails(
+        &s,
+        &["--scene", "ball-lens", "--pass-timings"],
+        EXIT_USAGE,
+        &["--pass-timings", "--timings"],
+    );
+}
+
+#[test]
 fn render_without_input_says_what_to_give() {
     let s = Scratch::new("no-input");
     render_fails(&s, &[], EXIT_INPUT, &["give a scene file", "--scene"]);

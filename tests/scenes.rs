@@ -64,6 +64,65 @@ fn validation_canary_counts_errors() {
     );
 }
 
+/// `render --timings` prints the total GPU time (a stable interface scripts read) and the
+/// time of each pass only with `--pass-timings` (its timestamps cost a CPU driver time).
+#[test]
+fn render_timings_give_the_passes_only_when_asked() {
+    let dir = std::env::temp_dir().join(format!("caustica-timings-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "render",
+            "--scene",
+            "ball-lens",
+            "--resolution",
+            "24",
+            "--size",
+            "32x32",
+        ];
+        args.extend(["-o", "x.png", "--timings"]);
+        args.extend(extra);
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_caustica"))
+            .args(&args)
+            .current_dir(&dir)
+            .env("CAUSTICA_VALIDATION", "require")
+            .output()
+            .expect("run the caustica binary");
+        let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+        assert!(out.status.success(), "{stdout}{}", String::from_utf8_lossy(&out.stderr));
+        stdout
+    };
+    let numbers = |line: &str| -> Vec<f64> {
+        line.split(|c: char| !(c.is_ascii_digit() || c == '.'))
+            .filter_map(|w| w.parse().ok())
+            .collect()
+    };
+    let total = |stdout: &str| -> f64 {
+        let line = stdout
+            .lines()
+            .find(|l| l.starts_with("total GPU ms: "))
+            .expect("a total");
+        numbers(line)[0]
+    };
+    let plain = run(&[]);
+    assert!(total(&plain) > 0.0, "{plain}");
+    assert!(!plain.contains("GPU ms by pass"), "{plain}");
+    let split = run(&["--pass-timings"]);
+    let passes = numbers(
+        split
+            .lines()
+            .find(|l| l.starts_with("GPU ms by pass"))
+            .expect("the passes"),
+    );
+    assert_eq!(passes.len(), 4, "{split}");
+    // The passes split that render's total: equal up to the printing of five numbers to a
+    // tenth of a millisecond (0.05 each).
+    let sum: f64 = passes.iter().sum();
+    assert!((sum - total(&split)).abs() <= 0.25, "{split}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// `caustica` without a command and without a display renders the default scene to
 /// `caustica.png` in the working directory (the README's first quick-start command).
 #[test]
