@@ -208,6 +208,17 @@ fn unseen_tiles_end() -> bool {
     return BEAMS && !REFRACTION && !SCATTER && !LBM;
 }
 
+// Whether the listed light tiles are stepped over several planes per dispatch
+// (`beams_steps`): where a beam's step reads no other beam (`dark_tiles_end`) and the view
+// reads only the power the beams keep per plane (the image and the medium view), a tile's
+// beams take all the planes up to the next view pass in one dispatch, their state kept in
+// the invocation between planes, and the tiles are listed once per view pass. A dispatch
+// that has work wakes a CPU driver's threads: this is one dispatch of the light and one
+// listing per view pass instead of one of each per plane.
+fn light_groups() -> bool {
+    return dark_tiles_end() && (DEBUG_VIEW == 0u || DEBUG_VIEW == 4u);
+}
+
 // Lists light tile t for plane k (>= 1) if its beams are to be stepped there: from the plane
 // its beams or a neighbouring tile's may come within the margin of a cell where the light
 // can change (`light_start`), until neither it nor a neighbour has a beam left that can come
@@ -217,13 +228,23 @@ fn unseen_tiles_end() -> bool {
 // that the beams near the box read their neighbours' footprints and light exactly as with
 // every beam stepped.
 fn list_light_tile(t: u32, k: u32) {
+    list_light_tile_for(t, k, k, k % 2u);
+}
+
+// Lists light tile t, as `list_light_tile`, for the planes k ..= last, which one dispatch
+// steps (`light_groups`; else last is k), in the lists of `parity`. A tile listed for them
+// is stepped on all of them from its start: what would have ended it on one of the later
+// planes (its beams past the cells where the light changes, its light gone dark, unseen or
+// out of the window) ends it at the next listing instead, and the steps in between write
+// the light it already had, or light that nothing that shows reads.
+fn list_light_tile_for(t: u32, k: u32, last: u32, parity: u32) {
     let n = P.beam_grid.w;
     let tx = P.beam_grid.z;
     if (t >= n || k >= u32(P.plane.z)) {
         return;
     }
     let start = light_start[t].y;
-    if (k < start || atomicLoad(&light_end[t]) != NEVER) {
+    if (last < start || atomicLoad(&light_end[t]) != NEVER) {
         return;
     }
     // Dark for good: stepped without light on the planes whose power the view reads back
@@ -238,8 +259,8 @@ fn list_light_tile(t: u32, k: u32) {
     // Tested every UNSEEN_TEST_PLANES planes: the test walks the tile's light to the last
     // plane, and on every plane it was two fifths of the listing pass (soft light, CT head,
     // 512²), while a tile ending up to three planes late is stepped 1.6 % more often.
-    if (unseen_tiles_end() && (P.culling.w & 2u) != 0u && k >= 2u && k % UNSEEN_TEST_PLANES == 0u
-        && light_tile_unseen(t, k)) {
+    if (unseen_tiles_end() && (P.culling.w & 2u) != 0u && k >= 2u
+        && (k % UNSEEN_TEST_PLANES == 0u || last > k) && light_tile_unseen(t, k)) {
         atomicStore(&light_end[t], k);
         return;
     }
@@ -271,7 +292,7 @@ fn list_light_tile(t: u32, k: u32) {
         atomicStore(&light_end[t], k);
         return;
     }
-    let list = (k % 2u) * 2u + select(1u, 0u, current || k == 1u);
+    let list = parity * 2u + select(1u, 0u, current || k == 1u || light_groups());
     let slot = atomicAdd(&light_args[list * 3u], 1u);
     light_lists[list * n + slot] = t;
 }
@@ -948,6 +969,65 @@ fn beams_step(ij: vec2<u32>, k: u32, tile: u32, mode: u32) {
         if (reaches_box(b.pos, light_direction(b.v), reach)) {
             atomicStore(&light_alive[tile], k);
         }
+    }
+}
+
+// Beam ij of listed light tile `tile` stepped on the planes a ..= last (`light_groups`): the
+// steps `beams_step` takes for this variant one dispatch per plane, with the state carried
+// in the invocation between planes. A beam keeps its cell, so its position on each plane
+// follows from the plane, and its power goes through the rounding of the stored state
+// (f16 unless F32_STATE) after every plane as it would between dispatches: the same light
+// to the bit.
+fn beams_steps(ij: vec2<u32>, a: u32, last: u32, tile: u32) {
+    if (ij.x >= P.beam_grid.x || ij.y >= P.beam_grid.y) {
+        return;
+    }
+    let start = light_start[tile].y;
+    let first = max(a, start);
+    if (first > last) {
+        return;
+    }
+    var b: Beam;
+    if (first == 1u || first != start) {
+        b = load_beam(ij, (first - 1u) % 2u, plane_z(first - 1u));
+    } else {
+        b = load_beam_at(ij, first - 1u, true);
+    }
+    let p0 = unproject(beam_cell_centre(ij) - vec2<f32>(0.5), P.plane.x);
+    let ds = P.plane.y;
+    var lit = 0u;
+    for (var k = first; k <= last; k++) {
+        if (k > first) {
+            b.pos = unrefracted(p0, plane_z(k - 1u));
+        }
+        let z = plane_z(k);
+        let x0 = b.pos;
+        b.pos = drift(b.pos, b.v, z);
+        let l = length(b.pos - x0);
+        let value = sample_value(b.pos);
+        let front = b.power;
+        if (max(b.power.r, max(b.power.g, b.power.b)) > 0.0) {
+            let mid = sample_value(0.5 * (x0 + b.pos));
+            b.power *= segment_transmittance(b.value, mid, value, l / ds, is_clipped(0.5 * (x0 + b.pos)));
+        }
+        let loss = max(front.r - b.power.r, max(front.g - b.power.g, front.b - b.power.b));
+        let deficit = max(1.0 - max(b.power.r, max(b.power.g, b.power.b)), 0.0);
+        if (loss > 0.0 && deficit > 0.0) {
+            let before = max(deficit - loss, 0.0);
+            b.shadow = (b.shadow * before + 0.5 * (x0.z + z) * loss) / (before + loss);
+        }
+        b.value = value;
+        store_beam_power(front_power_region(k), ij, front);
+        if (max(front.r, max(front.g, front.b)) > 0.0) {
+            lit = k;
+        }
+        if (!F32_STATE) {
+            b.power = vec4<f32>(unpack2x16float(pack2x16float(b.power.rg)), unpack2x16float(pack2x16float(vec2<f32>(b.power.b, 0.0)))).rgb;
+        }
+    }
+    store_beam(ij, last % 2u, last, b);
+    if (lit > 0u) {
+        atomicMax(&light_lit[tile], lit);
     }
 }
 

@@ -10,7 +10,8 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) l
         if (BEAMS) {
             beams_init(ij);
             if (light_tiles_listed() && li == 0u) {
-                list_light_tile(group, 1u);
+                // Plane 1 is the first view pass's (parity 0) with `light_groups`.
+                list_light_tile_for(group, 1u, 1u, select(1u, 0u, light_groups()));
             }
         } else {
             backward_init(ij);

@@ -51,6 +51,17 @@ fn light_listed_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invoca
 fn light_edge_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
     P = params;
     copy_deposit_header();
+    if (light_groups()) {
+        // No edge list: the tiles listed for planes k ..= k + view_steps - 1, list 0 of the
+        // view pass's parity (`list_light_tile_for`), each stepped over those planes.
+        let k = dispatch_plane(wg);
+        let group = wg.y * P.tiles.z + wg.x;
+        let t = light_lists[(I.view_list % 2u) * 2u * P.beam_grid.w + group];
+        let tile = vec2<u32>(t % P.beam_grid.z, t / P.beam_grid.z);
+        let last = min(k + I.view_steps - 1u, u32(P.plane.z) - 1u);
+        beams_steps(tile * TILE + vec2<u32>(li % TILE, li / TILE), k, last, t);
+        return;
+    }
     light_listed(wg, li, LIGHT_EDGE);
 }
 
@@ -113,6 +124,20 @@ fn tiles_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_in
             // invocation (plane k's light is complete: a barrier separates this pass from
             // it). The list after next starts empty (its last reader was plane k's light).
             let lt = t - P.tiles.y;
+            if (light_groups()) {
+                // After a view pass: the tiles of the next one's planes, k+1 ..= k+next, in
+                // the lists of its parity; the other parity's (the pass just done) starts
+                // empty.
+                let next = I.view_steps + wg.z;
+                if (next == 0u) {
+                    return;
+                }
+                if (lt < 2u) {
+                    atomicStore(&light_args[((I.view_list % 2u) * 2u + lt) * 3u], 0u);
+                }
+                list_light_tile_for(lt, k + 1u, k + next, (I.view_list + 1u) % 2u);
+                return;
+            }
             if (lt < 2u) {
                 atomicStore(&light_args[((k % 2u) * 2u + lt) * 3u], 0u);
             }

@@ -103,6 +103,10 @@ struct Layout {
     /// planes a view pass reads, the one the light pass beside it deposits onto, and the
     /// next, cleared meanwhile.
     deposit_slots: u32,
+    /// The listed light tiles are stepped over the planes up to the next view pass in one
+    /// dispatch, and listed once per view pass (`light_groups` in beams.wgsl): beams that read
+    /// no other beam, for the image and the medium view.
+    light_groups: bool,
     /// The beams are refracted (they deposit their light).
     refraction: bool,
     /// Texels of one plane of the pyramid of deposited light (`ACC_LEVELS` levels, or the
@@ -130,6 +134,7 @@ impl Layout {
             skip_empty_view_tiles: true,
             view_planes: 1,
             deposit_slots: LIGHT_RING as u32,
+            light_groups: false,
             refraction: false,
             pyramid_texels: 0,
             back_planes: 1,
@@ -564,6 +569,8 @@ pub(super) fn run(
         && matches!(req.debug_view, DebugView::Image | DebugView::Medium)
         && super::bricks::clear_outside(&prepared.tf)
         && layout.beam_groups <= MAX_GROUPS_PER_ROW;
+    // As `light_groups` in beams.wgsl (`dark_tiles_end` there, for these views).
+    layout.light_groups = layout.light_lists && !features.refraction && !features.light_filter && !features.lbm;
     layout.unseen_light_ends = !req.keep_unseen_light;
     layout.skip_empty_view_tiles = !req.step_empty_view_tiles;
     layout.refraction = features.refraction;
@@ -837,7 +844,17 @@ pub(super) fn run(
             let light_push = push(plane, 0, 0);
             let p = bytemuck::bytes_of(&light_push);
             let window = windows[plane as usize][3];
-            if plane < view.planes && layout.light_lists {
+            if plane < view.planes && layout.light_groups {
+                // The planes up to the next view pass in one dispatch, from the first after
+                // the last pass (the edge pass's entry point, list 0 of the pass's parity).
+                if plane == last_view + 1 {
+                    let group_end = next_view_pass(plane - 1).unwrap_or(dispatches);
+                    let last = group_end.min(view.planes - 1);
+                    let g = push(plane, last + 1 - plane, view_passes);
+                    let offset = (view_passes as u64 % 2) * 2 * 12;
+                    r.dispatch_indirect(&pipelines[6], &sets[6], bytemuck::bytes_of(&g), light_args, offset)?;
+                }
+            } else if plane < view.planes && layout.light_lists {
                 // The listed tiles, then those at the edge of the stepped ones (two lists
                 // per plane parity).
                 for (list, pass) in [(0, 5), (1, 6)] {
@@ -861,16 +878,18 @@ pub(super) fn run(
             }
             pass_stamp(&mut r, &ts, &mut stamps, req.pass_timings);
             // Clears the ring for the next plane's deposits and lists the next view pass's
-            // tiles (and the next plane's light tiles, from this plane's beams).
-            if layout.light_lists || features.refraction {
-                // The light tiles read the plane's light; the view tiles its rays' bends.
-                r.compute_to_compute();
-            }
+            // tiles (and the next plane's light tiles, from this plane's beams; with light
+            // groups the next view pass's).
             let next_steps = match (view_now, next_view_pass(plane)) {
                 (true, Some(next)) => next - plane,
                 _ => 0,
             };
-            if next_steps > 0 || layout.light_lists {
+            let lists_light = layout.light_lists && (!layout.light_groups || next_steps > 0);
+            if lists_light || features.refraction {
+                // The light tiles read the plane's light; the view tiles its rays' bends.
+                r.compute_to_compute();
+            }
+            if next_steps > 0 || lists_light {
                 let t = push(plane, next_steps, view_passes);
                 r.dispatch(&pipelines[3], &sets[3], bytemuck::bytes_of(&t), groups(tile_groups))?;
             }
