@@ -216,7 +216,7 @@ fn unseen_tiles_end() -> bool {
 // that has work wakes a CPU driver's threads: this is one dispatch of the light and one
 // listing per view pass instead of one of each per plane.
 fn light_groups() -> bool {
-    return dark_tiles_end() && (DEBUG_VIEW == 0u || DEBUG_VIEW == 4u);
+    return dark_tiles_end() && (DEBUG_VIEW == 0u || DEBUG_VIEW == 4u) && (P.culling.w & 8u) != 0u;
 }
 
 // Lists light tile t for plane k (>= 1) if its beams are to be stepped there: from the plane

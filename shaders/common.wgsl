@@ -95,7 +95,7 @@ struct Params {
     beam_grid: vec4<u32>,            // light grid: width, height, tiles in x, workgroups
     rect: vec4<u32>,                 // pixels whose rays can meet the volume: x0, y0, x1, y1 (half-open)
     tiles: vec4<u32>,                // view tiles in x, view workgroups, workgroups per dispatch row (all passes), light channels
-    culling: vec4<u32>,              // bricks along x, y, z; bits: view tiles listed per plane (1), light tiles unseen end (2), empty view tiles skipped (4)
+    culling: vec4<u32>,              // bricks along x, y, z; bits: view tiles listed per plane (1), light tiles unseen end (2), empty view tiles skipped (4), light tiles stepped per view pass (8)
     light_box: vec4<f32>,            // beams: texture units per view unit along each axis at most (xyz); w: 1 when light tiles are listed per plane
     sweep: vec4<u32>,                // planes of the beams' front power kept (x), planes a view sample reads back (y), slots of deposited light (z), texels of a plane of their pyramid (w)
 }

@@ -2,7 +2,7 @@
 
 mod common;
 
-use caustica::render::{PreparedScene, RenderRequest};
+use caustica::render::{DebugView, PreparedScene, RenderRequest};
 use caustica::scene::{builtin, Precision, Toggle, BUILTIN_SCENES};
 use common::*;
 
@@ -186,6 +186,61 @@ fn scattering_curves_at_zero_render_todays_image_with_todays_work() {
         a.image.pixels.iter().zip(&b.image.pixels).all(|(x, y)| x == y),
         "zero scattering changed the image"
     );
+}
+
+#[test]
+fn light_stepped_over_a_view_pass_renders_what_a_dispatch_per_plane_does() {
+    // Without refraction, the soft light's exchange or scattering a beam's step reads no other
+    // beam, and a render steps the listed light tiles over the planes up to the next view
+    // pass in one dispatch, rounding their power after every plane as the stored state is
+    // rounded between dispatches: the image (and the medium view) is the one a dispatch per
+    // plane gives, to the bit, with f16 as with f32 state. A tile that a dispatch per plane
+    // would end on a later plane of a pass is stepped to the pass's end, so the grouped sweep
+    // steps at least as many tiles, and per tile at most the planes of a pass (8) less one more.
+    let mut gpu = Gpu::new();
+    for (name, ds, debug) in [
+        ("supernova", 1.0, DebugView::Image),
+        ("thin-structures", 0.5, DebugView::Image),
+        ("glass-wine", 1.0, DebugView::Medium),
+    ] {
+        let mut scene = builtin(name).unwrap().scene;
+        scene.set_builtin_resolution(32);
+        scene.quality.refraction = Toggle::Off;
+        scene.quality.light_filter = false;
+        scene.quality.sample_distance = ds;
+        for precision in [Precision::F16, Precision::F32] {
+            scene.quality.precision = precision;
+            let p = PreparedScene::load(&scene).unwrap();
+            let mut req = RenderRequest::new(40, 40);
+            req.debug_view = debug;
+            req.per_plane_light = true;
+            let per_plane = gpu.render(&p, &req);
+            req.per_plane_light = false;
+            let grouped = gpu.render(&p, &req);
+            let planes = per_plane.stats.planes;
+            assert_eq!(
+                per_plane.stats.light_passes,
+                planes - 1,
+                "{name}: a light pass per plane"
+            );
+            assert!(
+                grouped.stats.light_passes * 2 < planes,
+                "{name}: {} light passes for {planes} planes",
+                grouped.stats.light_passes
+            );
+            assert!(
+                per_plane.image.pixels == grouped.image.pixels,
+                "{name} ({precision:?}, {debug:?}): the images differ"
+            );
+            let (one, group) = (per_plane.stats.light_steps.unwrap(), grouped.stats.light_steps.unwrap());
+            let [w, h] = grouped.stats.light_grid;
+            let tiles = (w.div_ceil(8) * h.div_ceil(8)) as u64;
+            assert!(
+                group >= one && group <= one + 7 * tiles,
+                "{name}: {group} tile steps grouped, {one} per plane, {tiles} tiles"
+            );
+        }
+    }
 }
 
 #[test]

@@ -109,6 +109,11 @@ pub struct RenderRequest {
     /// over them, the same image up to rounding). Tests only: false in every real render.
     #[doc(hidden)]
     pub step_empty_view_tiles: bool,
+    /// Step the light one dispatch per plane where a dispatch could take the planes up to the
+    /// next view pass (beams that read no other beam: the same image to the bit). Tests only:
+    /// false in every real render.
+    #[doc(hidden)]
+    pub per_plane_light: bool,
     /// Time each pass apart: timestamps between the light, view and listing passes of every
     /// plane ([`RenderStats::pass_ms`]). A CPU driver finishes the work before each timestamp,
     /// and on lavapipe they cost about 0.08 ms per plane (a third of the fixed cost of a
@@ -131,6 +136,7 @@ impl RenderRequest {
             view_planes: 0,
             keep_unseen_light: false,
             step_empty_view_tiles: false,
+            per_plane_light: false,
             pass_timings: false,
         }
     }
@@ -174,6 +180,9 @@ pub struct RenderStats {
     /// View passes of the sweep (one per plane, or fewer where each advances the rays over
     /// several: [`RenderRequest::view_planes`]).
     pub view_passes: u32,
+    /// Light passes of the sweep: one per plane, or one per view pass where the light is
+    /// stepped over a view pass's planes in one dispatch ([`RenderRequest::per_plane_light`]).
+    pub light_passes: u32,
     /// Light-tile steps (tiles of 8 × 8 beams, over all planes) where light tiles are listed
     /// per plane: the light's work.
     pub light_steps: Option<u64>,

@@ -357,7 +357,8 @@ fn make_params(
             brick_dims[2],
             u32::from(layout.lists)
                 | u32::from(layout.unseen_light_ends) << 1
-                | u32::from(layout.skip_empty_view_tiles) << 2,
+                | u32::from(layout.skip_empty_view_tiles) << 2
+                | u32::from(layout.light_groups) << 3,
         ],
         light_box,
         sweep: [
@@ -570,7 +571,8 @@ pub(super) fn run(
         && super::bricks::clear_outside(&prepared.tf)
         && layout.beam_groups <= MAX_GROUPS_PER_ROW;
     // As `light_groups` in beams.wgsl (`dark_tiles_end` there, for these views).
-    layout.light_groups = layout.light_lists && !features.refraction && !features.light_filter && !features.lbm;
+    layout.light_groups =
+        layout.light_lists && !req.per_plane_light && !features.refraction && !features.light_filter && !features.lbm;
     layout.unseen_light_ends = !req.keep_unseen_light;
     layout.skip_empty_view_tiles = !req.step_empty_view_tiles;
     layout.refraction = features.refraction;
@@ -816,6 +818,7 @@ pub(super) fn run(
     let view_pass = |k: u32| k <= 2 || (k - 2) % layout.view_planes == 0 || k == dispatches;
     let next_view_pass = |k: u32| (k + 1..=dispatches).find(|&j| view_pass(j));
     let mut view_passes = 0u32;
+    let mut light_passes = 0u32;
     let mut last_view = 0u32;
     let mut plane = 1u32;
     let mut rec = Some(rec);
@@ -853,6 +856,7 @@ pub(super) fn run(
                     let g = push(plane, last + 1 - plane, view_passes);
                     let offset = (view_passes as u64 % 2) * 2 * 12;
                     r.dispatch_indirect(&pipelines[6], &sets[6], bytemuck::bytes_of(&g), light_args, offset)?;
+                    light_passes += 1;
                 }
             } else if plane < view.planes && layout.light_lists {
                 // The listed tiles, then those at the edge of the stepped ones (two lists
@@ -861,8 +865,10 @@ pub(super) fn run(
                     let offset = ((plane as u64 % 2) * 2 + list) * 12;
                     r.dispatch_indirect(&pipelines[pass], &sets[pass], p, light_args, offset)?;
                 }
+                light_passes += 1;
             } else if plane < view.planes && window > 0 {
                 r.dispatch(&pipelines[1], &sets[1], p, groups(window))?;
+                light_passes += 1;
             }
             pass_stamp(&mut r, &ts, &mut stamps, req.pass_timings);
             let view_now = !diagnoses_light && view_pass(plane);
@@ -973,6 +979,7 @@ pub(super) fn run(
                     light_grid: [layout.grid.width, layout.grid.height],
                     light_cell_pixels: layout.grid.stride,
                     view_passes,
+                    light_passes,
                     light_steps,
                     rect: [view.rect.width(), view.rect.height()],
                     precision,
