@@ -219,57 +219,64 @@ fn light_groups() -> bool {
     return dark_tiles_end() && (DEBUG_VIEW == 0u || DEBUG_VIEW == 4u) && (P.culling.w & 8u) != 0u;
 }
 
-// Lists light tile t for plane k (>= 1) if its beams are to be stepped there: from the plane
-// its beams or a neighbouring tile's may come within the margin of a cell where the light
-// can change (`light_start`), until neither it nor a neighbour has a beam left that can come
-// within it (`light_start.z`, or `light_alive` from plane k-1's step) or it leaves the window;
-// then never again
-// (`light_end`). A tile keeps being stepped while a neighbour is, so
-// that the beams near the box read their neighbours' footprints and light exactly as with
-// every beam stepped.
-fn list_light_tile(t: u32, k: u32) {
-    list_light_tile_for(t, k, k, k % 2u);
+// The lists of light tiles a plane steps (`light_lists`, their indirect arguments
+// `light_args`): per parity of the view pass whose planes they step, per plane of the pass
+// (at most LIST_PLANES), the tiles whose beams and all they read were stepped on the plane
+// before (LIGHT_LISTED) and the others (LIGHT_EDGE). They are written after each view pass
+// for the next one's planes, so that the planes in between need no listing dispatch (a
+// dispatch that has work wakes a CPU driver's threads).
+const LIST_PLANES: u32 = 8u;
+
+fn light_list_slot(parity: u32, offset: u32, list: u32) -> u32 {
+    return (parity * LIST_PLANES + offset) * 2u + list;
 }
 
-// Lists light tile t, as `list_light_tile`, for the planes k ..= last, which one dispatch
-// steps (`light_groups`; else last is k), in the lists of `parity`. A tile listed for them
-// is stepped on all of them from its start: what would have ended it on one of the later
-// planes (its beams past the cells where the light changes, its light gone dark, unseen or
-// out of the window) ends it at the next listing instead, and the steps in between write
-// the light it already had, or light that nothing that shows reads.
-fn list_light_tile_for(t: u32, k: u32, last: u32, parity: u32) {
+fn append_light_tile(t: u32, slot: u32) {
+    let i = atomicAdd(&light_args[slot * 3u], 1u);
+    light_lists[slot * P.beam_grid.w + i] = t;
+}
+
+// Whether light tile t's beams are to be stepped on the planes k ..= last (k >= 1), which
+// are listed together (a view pass's): from the plane its beams or a neighbouring tile's may
+// come within the margin of a cell where the light can change (`light_start`), until neither
+// it nor a neighbour has a beam left that can come within it (`light_start.z`, or
+// `light_alive` from plane k-1's step) or it leaves the window; then never again
+// (`light_end`, written here). A tile keeps being stepped while a neighbour is, so that the
+// beams near the box read their neighbours' footprints and light exactly as with every beam
+// stepped. A tile that goes on is stepped on all of the planes from its start: what would
+// have ended it on one of the later ones (its beams past the cells where the light changes,
+// its light gone dark, unseen or out of the window) ends it at the next listing instead, and
+// the steps in between write the light it already had, or light that nothing that shows
+// reads.
+fn light_tile_goes_on(t: u32, k: u32, last: u32) -> bool {
     let n = P.beam_grid.w;
     let tx = P.beam_grid.z;
     if (t >= n || k >= u32(P.plane.z)) {
-        return;
+        return false;
     }
     let start = light_start[t].y;
     if (last < start || atomicLoad(&light_end[t]) != NEVER) {
-        return;
+        return false;
     }
     // Dark for good: stepped without light on the planes whose power the view reads back
     // (`front_power_region`) and on the last two (the power on the plane).
     let held = max(P.sweep.x, 2u);
     if (dark_tiles_end() && k > start + held && atomicLoad(&light_lit[t]) + held < k) {
         atomicStore(&light_end[t], k);
-        return;
+        return false;
     }
     // Unseen for good: no view ray left alive can read its light on this plane or a later one
     // (from plane 2 on: plane 1's tiles are listed while the view rays are being counted).
-    // Tested every UNSEEN_TEST_PLANES planes: the test walks the tile's light to the last
-    // plane, and on every plane it was two fifths of the listing pass (soft light, CT head,
-    // 512²), while a tile ending up to three planes late is stepped 1.6 % more often.
+    // Tested every UNSEEN_TEST_PLANES planes, or at each listing of several: the test walks
+    // the tile's light to the last plane, and on every plane it was two fifths of the
+    // listing pass (soft light, CT head, 512²), while a tile ending up to three planes late
+    // is stepped 1.6 % more often.
     if (unseen_tiles_end() && (P.culling.w & 2u) != 0u && k >= 2u
         && (k % UNSEEN_TEST_PLANES == 0u || last > k) && light_tile_unseen(t, k)) {
         atomicStore(&light_end[t], k);
-        return;
+        return false;
     }
     var stepped = k == start;
-    // Whether its beams and all they read were stepped on plane k-1 (on plane 1 every beam
-    // read is plane 0's, stored for all); else it is listed for `LIGHT_EDGE`. Where a beam's
-    // step reads no other beam (`dark_tiles_end`), its own tile's steps are all that count.
-    var current = k == 1u || k != start;
-    let own = dark_tiles_end();
     let c = vec2<i32>(vec2<u32>(t % tx, t / tx));
     for (var dy = -1; dy <= 1; dy++) {
         for (var dx = -1; dx <= 1; dx++) {
@@ -283,18 +290,60 @@ fn list_light_tile_for(t: u32, k: u32, last: u32, parity: u32) {
                 if (s.x != NEVER && (s.y >= k || max(atomicLoad(&light_alive[u]), s.z) >= k - 1u)) {
                     stepped = true;
                 }
-                // Stepped on plane k-1 (an end written meanwhile for another tile is k).
-                current = current && (own || (s.y <= k - 1u && atomicLoad(&light_end[u]) > k - 1u));
             }
         }
     }
     if (!stepped || !in_light_window(vec2<u32>(c), k)) {
         atomicStore(&light_end[t], k);
+        return false;
+    }
+    return true;
+}
+
+// Whether light tile t's beams and all they read were stepped on plane k-1, the tile being
+// stepped on plane k (on plane 1 every beam read is plane 0's, stored for all); else it is
+// listed for `LIGHT_EDGE`. Where a beam's step reads no other beam (`dark_tiles_end`), its
+// own tile's steps are all that count. The ends read are those of the listing before plane
+// k, or (an end written meanwhile for another tile, when listing for plane k itself) k.
+fn light_tile_current(t: u32, k: u32) -> bool {
+    let n = P.beam_grid.w;
+    let tx = P.beam_grid.z;
+    var current = k == 1u || k != light_start[t].y;
+    if (k == 1u || dark_tiles_end()) {
+        return current;
+    }
+    let c = vec2<i32>(vec2<u32>(t % tx, t / tx));
+    for (var dy = -1; dy <= 1; dy++) {
+        for (var dx = -1; dx <= 1; dx++) {
+            let q = c + vec2<i32>(dx, dy);
+            if (q.x >= 0 && q.y >= 0 && q.x < i32(tx) && u32(q.y) * tx + u32(q.x) < n) {
+                let u = u32(q.y) * tx + u32(q.x);
+                current = current && light_start[u].y <= k - 1u && atomicLoad(&light_end[u]) > k - 1u;
+            }
+        }
+    }
+    return current;
+}
+
+// Lists light tile t for plane k (>= 1) alone, in the lists of `parity` (the first plane of
+// the view pass): its ends and its list in one dispatch.
+fn list_light_tile(t: u32, k: u32, parity: u32) {
+    if (light_tile_goes_on(t, k, k)) {
+        append_light_tile(t, light_list_slot(parity, 0u, select(1u, 0u, light_tile_current(t, k))));
+    }
+}
+
+// Lists light tile t for the planes k ..= last of a view pass, in the lists of `parity`,
+// once `light_tile_goes_on` has written the ends (a dispatch before: the lists read the
+// neighbours' ends), a list per plane from its start.
+fn list_light_tile_planes(t: u32, k: u32, last: u32, parity: u32) {
+    if (t >= P.beam_grid.w || k >= u32(P.plane.z) || atomicLoad(&light_end[t]) != NEVER) {
         return;
     }
-    let list = parity * 2u + select(1u, 0u, current || k == 1u || light_groups());
-    let slot = atomicAdd(&light_args[list * 3u], 1u);
-    light_lists[list * n + slot] = t;
+    let end = min(last, u32(P.plane.z) - 1u);
+    for (var j = max(k, light_start[t].y); j <= end; j++) {
+        append_light_tile(t, light_list_slot(parity, j - k, select(1u, 0u, light_tile_current(t, j))));
+    }
 }
 
 // Planes between two tests of a light tile for `light_tile_unseen` (a tile unseen on one plane

@@ -10,8 +10,8 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) l
         if (BEAMS) {
             beams_init(ij);
             if (light_tiles_listed() && li == 0u) {
-                // Plane 1 is the first view pass's (parity 0) with `light_groups`.
-                list_light_tile_for(group, 1u, 1u, select(1u, 0u, light_groups()));
+                // Plane 1 is the first view pass's (parity 0).
+                list_light_tile(group, 1u, 0u);
             }
         } else {
             backward_init(ij);
@@ -19,7 +19,7 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) l
         return;
     }
     let vg = group - P.beam_grid.w;
-    if (vg == 0u && li < 4u) {
+    if (vg == 0u && li < 4u * LIST_PLANES) {
         // The lists' indirect arguments: one row of workgroups (x counts the tiles).
         if (li < 3u) {
             atomicStore(&tile_args[li * 3u + 1u], 1u);

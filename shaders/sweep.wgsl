@@ -13,6 +13,15 @@ fn light_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_in
     P = params;
     copy_deposit_header();
     let k = dispatch_plane(wg);
+    if (BEAMS && light_tiles_listed()) {
+        // With light tiles listed this pass is not the light's: after a view pass over
+        // several planes, once `tiles_main` has ended the tiles that end, it lists those
+        // that go on for each of the next pass's planes, k+1 ..= k+view_steps (one
+        // invocation per light tile).
+        let t = (wg.y * P.tiles.z + wg.x) * TILE * TILE + li;
+        list_light_tile_planes(t, k + 1u, k + I.view_steps, (I.view_list + 1u) % 2u);
+        return;
+    }
     // The cells that can still reach the image on this plane or a later one: a window of
     // the light grid, in tiles (`light_windows` in state.rs).
     let window = light_window[k];
@@ -30,12 +39,13 @@ fn light_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_in
 }
 
 // Beams with light tiles listed: the tiles of list `list` (LIGHT_LISTED or LIGHT_EDGE) for
-// plane k, one per workgroup (indirect, `list_light_tile`).
+// plane k, the plane view_steps of the view pass view_list, one per workgroup (indirect,
+// `list_light_tile`).
 fn light_listed(wg: vec3<u32>, li: u32, list: u32) {
     let k = dispatch_plane(wg);
     let group = wg.y * P.tiles.z + wg.x;
-    let n = P.beam_grid.w;
-    let t = light_lists[((k % 2u) * 2u + list - LIGHT_LISTED) * n + group];
+    let slot = light_list_slot(I.view_list % 2u, I.view_steps, list - LIGHT_LISTED);
+    let t = light_lists[slot * P.beam_grid.w + group];
     let tile = vec2<u32>(t % P.beam_grid.z, t / P.beam_grid.z);
     beams_step(tile * TILE + vec2<u32>(li % TILE, li / TILE), k, t, list);
 }
@@ -52,11 +62,11 @@ fn light_edge_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocati
     P = params;
     copy_deposit_header();
     if (light_groups()) {
-        // No edge list: the tiles listed for planes k ..= k + view_steps - 1, list 0 of the
-        // view pass's parity (`list_light_tile_for`), each stepped over those planes.
+        // No edge list: the tiles listed for planes k ..= k + view_steps - 1 (the first
+        // list of the view pass's parity), each stepped over those planes.
         let k = dispatch_plane(wg);
         let group = wg.y * P.tiles.z + wg.x;
-        let t = light_lists[(I.view_list % 2u) * 2u * P.beam_grid.w + group];
+        let t = light_lists[light_list_slot(I.view_list % 2u, 0u, 0u) * P.beam_grid.w + group];
         let tile = vec2<u32>(t % P.beam_grid.z, t / P.beam_grid.z);
         let last = min(k + I.view_steps - 1u, u32(P.plane.z) - 1u);
         beams_steps(tile * TILE + vec2<u32>(li % TILE, li / TILE), k, last, t);
@@ -120,28 +130,30 @@ fn tiles_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_in
     let t = group * TILE * TILE + li;
     if (t >= P.tiles.y) {
         if (BEAMS && light_tiles_listed()) {
-            // The workgroups after the view tiles' list the light tiles of plane k+1, one per
-            // invocation (plane k's light is complete: a barrier separates this pass from
-            // it). The list after next starts empty (its last reader was plane k's light).
+            // After a view pass, the workgroups after the view tiles' list the light tiles of
+            // the next one's planes, k+1 ..= k+next, one per invocation (plane k's light is
+            // complete: a barrier separates this pass from it), in the lists of its parity.
+            // The other parity's lists (the pass just done) start empty.
             let lt = t - P.tiles.y;
-            if (light_groups()) {
-                // After a view pass: the tiles of the next one's planes, k+1 ..= k+next, in
-                // the lists of its parity; the other parity's (the pass just done) starts
-                // empty.
-                let next = I.view_steps + wg.z;
-                if (next == 0u) {
-                    return;
-                }
-                if (lt < 2u) {
-                    atomicStore(&light_args[((I.view_list % 2u) * 2u + lt) * 3u], 0u);
-                }
-                list_light_tile_for(lt, k + 1u, k + next, (I.view_list + 1u) % 2u);
+            let next = I.view_steps + wg.z;
+            if (next == 0u) {
                 return;
             }
-            if (lt < 2u) {
-                atomicStore(&light_args[((k % 2u) * 2u + lt) * 3u], 0u);
+            if (lt < 2u * LIST_PLANES) {
+                atomicStore(&light_args[light_list_slot(I.view_list % 2u, lt / 2u, lt % 2u) * 3u], 0u);
             }
-            list_light_tile(lt, k + 1u);
+            let parity = (I.view_list + 1u) % 2u;
+            if (light_groups()) {
+                // One list: a dispatch steps the tiles over all the planes.
+                if (light_tile_goes_on(lt, k + 1u, k + next)) {
+                    append_light_tile(lt, light_list_slot(parity, 0u, 0u));
+                }
+            } else if (next == 1u) {
+                list_light_tile(lt, k + 1u, parity);
+            } else {
+                // The ends only: the lists per plane read the neighbours' (`light_main`).
+                _ = light_tile_goes_on(lt, k + 1u, k + next);
+            }
         }
         return;
     }

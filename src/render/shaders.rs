@@ -114,6 +114,11 @@ mod tests {
     fn the_tile_size_matches_the_shaders() {
         let line = format!("const TILE: u32 = {}u;", Pass::TILE);
         assert!(COMMON.contains(&line), "common.wgsl lacks '{line}'");
+        let line = format!(
+            "const LIST_PLANES: u32 = {}u;",
+            crate::render::state::VIEW_PLANES_PER_PASS
+        );
+        assert!(BEAMS.contains(&line), "beams.wgsl lacks '{line}'");
         for pass in [
             Pass::Init,
             Pass::Light,

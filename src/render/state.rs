@@ -39,7 +39,16 @@ const TEXELS_PER_SUBMIT: u64 = 1 << 24;
 /// change stops it within about one plane of a 1024×768 image.
 const PIXEL_PLANES_PER_SUBMIT_CANCELLABLE: u32 = 1 << 20;
 /// Planes a view pass advances its rays over where it can take several (`Layout::view_planes`).
-const VIEW_PLANES_PER_PASS: u32 = 8;
+pub(super) const VIEW_PLANES_PER_PASS: u32 = 8;
+/// Lists of light tiles kept at once (`light_lists`, `light_list_slot` in beams.wgsl): per
+/// parity of the view pass whose planes they step, per plane of the pass, two.
+const LIGHT_LISTS: u32 = 2 * VIEW_PLANES_PER_PASS * 2;
+
+/// The slot of the list of light tiles for the plane `offset` planes into a view pass of
+/// parity `parity` (`light_list_slot` in beams.wgsl).
+fn light_list_slot(parity: u32, offset: u32, list: u32) -> u64 {
+    ((parity * VIEW_PLANES_PER_PASS + offset) * 2 + list) as u64
+}
 /// Bytes the light of the planes a view pass spans may take. The beams' power: eight planes
 /// up to about 700² pixels, three at 1024² (where the fixed cost per plane matters least);
 /// refracted beams' deposits (rgb): eight planes up to 512², four at the viewer's full level
@@ -424,8 +433,12 @@ impl State {
             ("light_end", layout.beam_groups as u64 * 4, layout.light_lists),
             ("light_alive", layout.beam_groups as u64 * 4, layout.light_lists),
             ("light_lit", layout.beam_groups as u64 * 4, layout.light_lists),
-            ("light_lists", 4 * layout.beam_groups as u64 * 4, layout.light_lists),
-            ("light_args", 4 * 12, true),
+            (
+                "light_lists",
+                LIGHT_LISTS as u64 * layout.beam_groups as u64 * 4,
+                layout.light_lists,
+            ),
+            ("light_args", LIGHT_LISTS as u64 * 12, true),
         ];
         let mut buffers = Vec::new();
         let mut bytes = 0;
@@ -599,7 +612,7 @@ pub(super) fn run(
         };
         layout.view_planes = match req.view_planes {
             0 => fit.clamp(1, VIEW_PLANES_PER_PASS),
-            n => n,
+            n => n.min(VIEW_PLANES_PER_PASS),
         };
         if features.refraction {
             layout.deposit_slots = layout.view_planes + 2;
@@ -854,16 +867,24 @@ pub(super) fn run(
                     let group_end = next_view_pass(plane - 1).unwrap_or(dispatches);
                     let last = group_end.min(view.planes - 1);
                     let g = push(plane, last + 1 - plane, view_passes);
-                    let offset = (view_passes as u64 % 2) * 2 * 12;
+                    let offset = light_list_slot(view_passes % 2, 0, 0) * 12;
                     r.dispatch_indirect(&pipelines[6], &sets[6], bytemuck::bytes_of(&g), light_args, offset)?;
                     light_passes += 1;
                 }
             } else if plane < view.planes && layout.light_lists {
-                // The listed tiles, then those at the edge of the stepped ones (two lists
-                // per plane parity).
+                // The listed tiles, then those at the edge of the stepped ones: the lists of
+                // this plane of the view pass, written after the pass before.
+                let in_pass = plane - last_view - 1;
+                let lp = push(plane, in_pass, view_passes);
                 for (list, pass) in [(0, 5), (1, 6)] {
-                    let offset = ((plane as u64 % 2) * 2 + list) * 12;
-                    r.dispatch_indirect(&pipelines[pass], &sets[pass], p, light_args, offset)?;
+                    let offset = light_list_slot(view_passes % 2, in_pass, list) * 12;
+                    r.dispatch_indirect(
+                        &pipelines[pass],
+                        &sets[pass],
+                        bytemuck::bytes_of(&lp),
+                        light_args,
+                        offset,
+                    )?;
                 }
                 light_passes += 1;
             } else if plane < view.planes && window > 0 {
@@ -883,32 +904,54 @@ pub(super) fn run(
                 }
             }
             pass_stamp(&mut r, &ts, &mut stamps, req.pass_timings);
-            // Clears the ring for the next plane's deposits and lists the next view pass's
-            // tiles (and the next plane's light tiles, from this plane's beams; with light
-            // groups the next view pass's).
+            // Clears the ring for the next plane's deposits and, after a view pass, lists the
+            // next one's view tiles and the light tiles of its planes, from this plane's beams:
+            // the tiles pass ends the light tiles that end and, for a single plane, lists the
+            // others; for several, a second pass lists them per plane (it reads the
+            // neighbours' ends). With light groups one list takes all the planes.
             let next_steps = match (view_now, next_view_pass(plane)) {
                 (true, Some(next)) => next - plane,
                 _ => 0,
             };
-            let lists_light = layout.light_lists && (!layout.light_groups || next_steps > 0);
-            if lists_light || features.refraction {
+            let lists_light = layout.light_lists && next_steps > 0;
+            if next_steps > 0 && (lists_light || features.refraction) {
                 // The light tiles read the plane's light; the view tiles its rays' bends.
                 r.compute_to_compute();
             }
-            if next_steps > 0 || lists_light {
+            if next_steps > 0 {
                 let t = push(plane, next_steps, view_passes);
                 r.dispatch(&pipelines[3], &sets[3], bytemuck::bytes_of(&t), groups(tile_groups))?;
+            }
+            if lists_light && !layout.light_groups && next_steps > 1 {
+                r.compute_to_compute();
+                let t = push(plane, next_steps, view_passes);
+                let light_tile_groups = layout.beam_groups.div_ceil(Pass::TILE * Pass::TILE);
+                r.dispatch(
+                    &pipelines[1],
+                    &sets[1],
+                    bytemuck::bytes_of(&t),
+                    groups(light_tile_groups),
+                )?;
             }
             if view_now {
                 view_passes += 1;
                 last_view = plane;
             }
             if let Some(bytes) = deposit_slot_bytes {
-                // Plane k+1 deposits into the slot plane k+1-S used (S slots: the view
-                // planes and two more), whose last reader was a view dispatch before this
-                // plane's (it reads at most `view_planes` planes back from k-1).
-                let slot = (plane as u64 + 1) % layout.deposit_slots as u64;
-                r.fill_range(light_acc, slot * bytes, bytes, 0)?;
+                // Plane j deposits into the slot plane j-S used (S slots: the view planes and
+                // two more), whose last reader was a view dispatch before it (which reads at
+                // most `view_planes` planes back from j-1). After a view pass, the slots of the
+                // next one's planes (their last reader was this pass or one before), in one or
+                // two fills; without view passes (the light views) plane k+1's.
+                let planes = if diagnoses_light { 1 } else { next_steps as u64 };
+                let slots = layout.deposit_slots as u64;
+                let mut j = plane as u64 + 1;
+                while j <= plane as u64 + planes {
+                    let slot = j % slots;
+                    let n = (planes - (j - plane as u64 - 1)).min(slots - slot);
+                    r.fill_range(light_acc, slot * bytes, n * bytes, 0)?;
+                    j += n;
+                }
             }
             r.compute_to_indirect();
             pass_stamp(&mut r, &ts, &mut stamps, req.pass_timings);
