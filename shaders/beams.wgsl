@@ -71,7 +71,8 @@ fn load_beam(ij: vec2<u32>, half: u32, z: f32) -> Beam {
 }
 
 // ---------------------------------------------------------------------------------------
-// Light tiles listed per plane (`list_light_tile`, run by `tiles_main` in sweep.wgsl): a tile
+// Light tiles listed for each plane (after each view pass for the next one's planes:
+// `light_tile_goes_on` and `list_light_tile`, run by `tiles_main` in sweep.wgsl): a tile
 // of beams is stepped only from shortly before one of its beams (or a neighbouring tile's)
 // comes within a margin of a cell where particles absorb or show or η changes
 // (`occupancy.rs`) until none of them can any more. Outside those cells nothing attenuates or

@@ -203,9 +203,9 @@ const VIEW_TILE_BENT: u32 = 0x80000000u;
 // stepped) and, without refraction, the last plane on which one of its beams is within that
 // margin (z; 0 with refraction); the plane from which it is no longer stepped (NEVER while it
 // is); with refraction, the last plane on which one of its bent beams could still come within
-// the margin of the volume's box; per plane parity two lists of the tiles a plane steps
-// (LIGHT_LISTED and LIGHT_EDGE in beams.wgsl), and their indirect dispatch arguments (x, y, z;
-// x counts the tiles).
+// the margin of the volume's box; per parity of a view pass and plane of it two lists of the
+// tiles the plane steps (LIGHT_LISTED and LIGHT_EDGE in beams.wgsl, `light_list_slot`), and
+// their indirect dispatch arguments (x, y, z; x counts the tiles).
 @group(0) @binding(28) var<storage, read> light_start: array<vec4<u32>>;
 @group(0) @binding(29) var<storage, read_write> light_end: array<atomic<u32>>;
 @group(0) @binding(30) var<storage, read_write> light_alive: array<atomic<u32>>;
