@@ -879,6 +879,30 @@ const LIGHT_EDGE: u32 = 2u;
 // One beam from plane k-1 to plane k: drift, attenuation over the segment, soft light,
 // deposit on plane k, kick (Eq. 8 and Snell at the new position). `tile`: ij's light tile;
 // `mode`: LIGHT_WINDOW, LIGHT_LISTED or LIGHT_EDGE.
+// Beam b's segment from x0 to its position on plane z (b.pos): its power attenuated by the
+// particles and the medium along it, its shadow depth moved to where, weighted by the power
+// lost, the light was lost, and the data value at its end. Returns the segment's length.
+fn attenuate(b: ptr<function, Beam>, x0: vec3<f32>, z: f32) -> f32 {
+    let p = (*b).pos;
+    let l = length(p - x0);
+    let value = sample_value(p);
+    let front = (*b).power;
+    var power = front;
+    if (max(power.r, max(power.g, power.b)) > 0.0) {
+        let mid = sample_value(0.5 * (x0 + p));
+        power *= segment_transmittance((*b).value, mid, value, l / P.plane.y, is_clipped(0.5 * (x0 + p)));
+    }
+    let loss = max(front.r - power.r, max(front.g - power.g, front.b - power.b));
+    let deficit = max(1.0 - max(power.r, max(power.g, power.b)), 0.0);
+    if (loss > 0.0 && deficit > 0.0) {
+        let before = max(deficit - loss, 0.0);
+        (*b).shadow = ((*b).shadow * before + 0.5 * (x0.z + z) * loss) / (before + loss);
+    }
+    (*b).power = power;
+    (*b).value = value;
+    return l;
+}
+
 fn beams_step(ij: vec2<u32>, k: u32, tile: u32, mode: u32) {
     if (ij.x >= P.beam_grid.x || ij.y >= P.beam_grid.y) {
         return;
@@ -886,7 +910,6 @@ fn beams_step(ij: vec2<u32>, k: u32, tile: u32, mode: u32) {
     let index = ij.y * P.beam_grid.x + ij.x;
     let z = plane_z(k);
     let current = mode != LIGHT_EDGE;
-    let ds = P.plane.y;
     var b: Beam;
     if (current) {
         b = load_beam(ij, (k - 1u) % 2u, plane_z(k - 1u));
@@ -896,22 +919,9 @@ fn beams_step(ij: vec2<u32>, k: u32, tile: u32, mode: u32) {
     let x0 = b.pos;
     b.pos = drift(b.pos, b.v, z);
     let d = light_direction(b.v);
-    let l = length(b.pos - x0);
-    let value = sample_value(b.pos);
     let lost_before = b.power;
     let value_front = b.value;
-    if (max(b.power.r, max(b.power.g, b.power.b)) > 0.0) {
-        let mid = sample_value(0.5 * (x0 + b.pos));
-        b.power *= segment_transmittance(b.value, mid, value, l / ds, is_clipped(0.5 * (x0 + b.pos)));
-    }
-    // Shadow depth: where, weighted by the power lost, the light was lost.
-    let loss = max(lost_before.r - b.power.r, max(lost_before.g - b.power.g, lost_before.b - b.power.b));
-    let deficit = max(1.0 - max(b.power.r, max(b.power.g, b.power.b)), 0.0);
-    if (loss > 0.0 && deficit > 0.0) {
-        let before = max(deficit - loss, 0.0);
-        b.shadow = (b.shadow * before + 0.5 * (x0.z + z) * loss) / (before + loss);
-    }
-    b.value = value;
+    let l = attenuate(&b, x0, z);
 
     // Neighbours on plane k: their drift needs only their stored state.
     let gi = vec2<i32>(ij);
@@ -1044,7 +1054,6 @@ fn beams_steps(ij: vec2<u32>, a: u32, last: u32, tile: u32) {
         b = load_beam_at(ij, first - 1u, true);
     }
     let p0 = unproject(beam_cell_centre(ij) - vec2<f32>(0.5), P.plane.x);
-    let ds = P.plane.y;
     var lit = 0u;
     for (var k = first; k <= last; k++) {
         if (k > first) {
@@ -1053,20 +1062,8 @@ fn beams_steps(ij: vec2<u32>, a: u32, last: u32, tile: u32) {
         let z = plane_z(k);
         let x0 = b.pos;
         b.pos = drift(b.pos, b.v, z);
-        let l = length(b.pos - x0);
-        let value = sample_value(b.pos);
         let front = b.power;
-        if (max(b.power.r, max(b.power.g, b.power.b)) > 0.0) {
-            let mid = sample_value(0.5 * (x0 + b.pos));
-            b.power *= segment_transmittance(b.value, mid, value, l / ds, is_clipped(0.5 * (x0 + b.pos)));
-        }
-        let loss = max(front.r - b.power.r, max(front.g - b.power.g, front.b - b.power.b));
-        let deficit = max(1.0 - max(b.power.r, max(b.power.g, b.power.b)), 0.0);
-        if (loss > 0.0 && deficit > 0.0) {
-            let before = max(deficit - loss, 0.0);
-            b.shadow = (b.shadow * before + 0.5 * (x0.z + z) * loss) / (before + loss);
-        }
-        b.value = value;
+        _ = attenuate(&b, x0, z);
         store_beam_power(front_power_region(k), ij, front);
         if (max(front.r, max(front.g, front.b)) > 0.0) {
             lit = k;
