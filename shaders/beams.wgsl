@@ -144,6 +144,12 @@ fn load_beam_at(ij: vec2<u32>, plane: u32, exact: bool) -> Beam {
 // two halves carried straight from its plane (the tile is no longer stepped), or, if that is
 // plane 0, `pre_entry_beam` (never stepped).
 fn load_stored_beam(ij: vec2<u32>, plane: u32, exact: bool) -> Beam {
+    // A tile is stepped from its start on (`light_start.y`): one that starts after `plane` was
+    // never stepped, and its half of the next plane may be being written by its first step
+    // while this reads it (a texel is stored word by word on a CPU driver).
+    if (light_tiles_listed() && light_start[beam_tile(ij)].y > plane) {
+        return pre_entry_beam(ij, plane, exact);
+    }
     var half = plane % 2u;
     var stored = u32(beam_texel(ij, BEAM_AUX, half).w);
     // The other half may be being written on the plane after (a tile that starts there): only
