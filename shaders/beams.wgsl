@@ -243,6 +243,17 @@ fn append_light_tile(t: u32, slot: u32) {
     light_lists[slot * P.beam_grid.w + i] = t;
 }
 
+// Tile i (0 ..= 8, row by row) of the 3 × 3 light tiles around and including tile t, or NEVER
+// beyond the grid.
+fn light_tile_around(t: u32, i: u32) -> u32 {
+    let tx = P.beam_grid.z;
+    let q = vec2<i32>(vec2<u32>(t % tx, t / tx)) + vec2<i32>(i32(i % 3u) - 1, i32(i / 3u) - 1);
+    if (q.x < 0 || q.y < 0 || q.x >= i32(tx) || u32(q.y) * tx + u32(q.x) >= P.beam_grid.w) {
+        return NEVER;
+    }
+    return u32(q.y) * tx + u32(q.x);
+}
+
 // Whether light tile t's beams are to be stepped on the planes k ..= last (k >= 1), which
 // are listed together (a view pass's): from the plane its beams or a neighbouring tile's may
 // come within the margin of a cell where the light can change (`light_start`), until neither
@@ -284,23 +295,19 @@ fn light_tile_goes_on(t: u32, k: u32, last: u32) -> bool {
         return false;
     }
     var stepped = k == start;
-    let c = vec2<i32>(vec2<u32>(t % tx, t / tx));
-    for (var dy = -1; dy <= 1; dy++) {
-        for (var dx = -1; dx <= 1; dx++) {
-            let q = c + vec2<i32>(dx, dy);
-            if (q.x >= 0 && q.y >= 0 && q.x < i32(tx) && u32(q.y) * tx + u32(q.x) < n) {
-                let u = u32(q.y) * tx + u32(q.x);
-                let s = light_start[u];
-                // Not finished: its beams are still to come near an occupied cell, or one
-                // that was stepped on plane k-1 can still come within the margin (without
-                // refraction s.z, the last plane of its straight beams; with it `light_alive`).
-                if (s.x != NEVER && (s.y >= k || max(atomicLoad(&light_alive[u]), s.z) >= k - 1u)) {
-                    stepped = true;
-                }
+    for (var i = 0u; i < 9u; i++) {
+        let u = light_tile_around(t, i);
+        if (u != NEVER) {
+            let s = light_start[u];
+            // Not finished: its beams are still to come near an occupied cell, or one that
+            // was stepped on plane k-1 can still come within the margin (without refraction
+            // s.z, the last plane of its straight beams; with it `light_alive`).
+            if (s.x != NEVER && (s.y >= k || max(atomicLoad(&light_alive[u]), s.z) >= k - 1u)) {
+                stepped = true;
             }
         }
     }
-    if (!stepped || !in_light_window(vec2<u32>(c), k)) {
+    if (!stepped || !in_light_window(vec2<u32>(t % tx, t / tx), k)) {
         atomicStore(&light_end[t], k);
         return false;
     }
@@ -313,20 +320,14 @@ fn light_tile_goes_on(t: u32, k: u32, last: u32) -> bool {
 // own tile's steps are all that count. The ends read are those of the listing before plane
 // k, or (an end written meanwhile for another tile, when listing for plane k itself) k.
 fn light_tile_current(t: u32, k: u32) -> bool {
-    let n = P.beam_grid.w;
-    let tx = P.beam_grid.z;
     var current = k == 1u || k != light_start[t].y;
     if (k == 1u || dark_tiles_end()) {
         return current;
     }
-    let c = vec2<i32>(vec2<u32>(t % tx, t / tx));
-    for (var dy = -1; dy <= 1; dy++) {
-        for (var dx = -1; dx <= 1; dx++) {
-            let q = c + vec2<i32>(dx, dy);
-            if (q.x >= 0 && q.y >= 0 && q.x < i32(tx) && u32(q.y) * tx + u32(q.x) < n) {
-                let u = u32(q.y) * tx + u32(q.x);
-                current = current && light_start[u].y <= k - 1u && atomicLoad(&light_end[u]) > k - 1u;
-            }
+    for (var i = 0u; i < 9u; i++) {
+        let u = light_tile_around(t, i);
+        if (u != NEVER) {
+            current = current && light_start[u].y <= k - 1u && atomicLoad(&light_end[u]) > k - 1u;
         }
     }
     return current;
