@@ -178,7 +178,7 @@ fn write_exr(path: &Path, image: &RenderedImage, hash: &str) -> std::io::Result<
     let layer = Layer::new(
         (w, image.height as usize),
         attributes,
-        Encoding::FAST_LOSSLESS,
+        crate::scene::image::EXR_ENCODING,
         channels,
     );
     Image::from_layer(layer)

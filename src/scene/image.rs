@@ -33,6 +33,14 @@ pub fn linear_to_srgb(c: f32) -> f32 {
     }
 }
 
+/// How EXR output is encoded: the exr crate's default (RLE in 64×64 tiles), with the tiles
+/// in increasing order. Its default order is whatever its parallel compression finishes
+/// first, so the same image gave files that differed from run to run.
+pub const EXR_ENCODING: exr::image::Encoding = exr::image::Encoding {
+    line_order: exr::meta::attribute::LineOrder::Increasing,
+    ..exr::image::Encoding::FAST_LOSSLESS
+};
+
 impl RenderedImage {
     /// Adds `other` (the same size) pixel by pixel.
     pub fn add(&mut self, other: &RenderedImage) {
@@ -63,7 +71,8 @@ impl RenderedImage {
             .collect()
     }
 
-    /// Writes PNG (sRGB, 8 bit) or EXR (linear, 32-bit float) by the file extension.
+    /// Writes PNG (sRGB, 8 bit) or EXR (linear, 32-bit float; [`EXR_ENCODING`]) by the file
+    /// extension.
     pub fn save(&self, path: &Path) -> Result<(), OutputError> {
         let ext = path
             .extension()
@@ -77,12 +86,16 @@ impl RenderedImage {
             "png" => image::save_buffer(path, &self.to_srgb8(), self.width, self.height, image::ColorType::Rgba8)
                 .map_err(|e| err(e.to_string())),
             "exr" => {
+                use exr::prelude::*;
                 let w = self.width as usize;
-                exr::prelude::write_rgba_file(path, w, self.height as usize, |x, y| {
+                let channels = SpecificChannels::rgba(|Vec2(x, y): Vec2<usize>| {
                     let p = self.pixels[y * w + x];
                     (p[0], p[1], p[2], p[3])
-                })
-                .map_err(|e| err(e.to_string()))
+                });
+                Image::from_encoded_channels((w, self.height as usize), EXR_ENCODING, channels)
+                    .write()
+                    .to_file(path)
+                    .map_err(|e| err(e.to_string()))
             }
             _ => Err(OutputError::Format(path.display().to_string())),
         }
@@ -150,5 +163,51 @@ mod tests {
             pixels: vec![[0.5; 4]; 3],
         };
         assert!(flat.resized(7, 2).pixels.iter().flatten().all(|v| *v == 0.5));
+    }
+
+    #[test]
+    fn exr_files_of_the_same_image_are_the_same_bytes() {
+        // Many tiles (64×64 each) with varied content, so that parallel compression has
+        // blocks to finish in any order; the file keeps them in increasing order.
+        let (w, h) = (300u32, 260u32);
+        let img = RenderedImage {
+            width: w,
+            height: h,
+            pixels: (0..w * h)
+                .map(|i| {
+                    let v = ((i * 2654435761) % 1000) as f32 / 100.0;
+                    [v, (i % 7) as f32, 1.0 / (1.0 + v), 1.0]
+                })
+                .collect(),
+        };
+        let dir = std::env::temp_dir().join(format!("caustica-exr-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let paths: Vec<_> = (0..4).map(|i| dir.join(format!("{i}.exr"))).collect();
+        for p in &paths {
+            img.save(p).unwrap();
+        }
+        let meta = exr::meta::MetaData::read_from_file(&paths[0], false).unwrap();
+        assert_eq!(meta.headers[0].line_order, exr::meta::attribute::LineOrder::Increasing);
+        let first = std::fs::read(&paths[0]).unwrap();
+        for p in &paths[1..] {
+            assert!(
+                std::fs::read(p).unwrap() == first,
+                "{} differs from the first file",
+                p.display()
+            );
+        }
+        let back = exr::prelude::read_first_rgba_layer_from_file(
+            &paths[0],
+            |size, _| vec![[0f32; 4]; size.width() * size.height()],
+            move |px: &mut Vec<[f32; 4]>, pos, (r, g, b, a): (f32, f32, f32, f32)| {
+                px[pos.y() * w as usize + pos.x()] = [r, g, b, a];
+            },
+        );
+        let _ = std::fs::remove_dir_all(&dir);
+        let back = back.unwrap();
+        assert!(
+            back.layer_data.channel_data.pixels == img.pixels,
+            "the pixels read back differ"
+        );
     }
 }
