@@ -285,10 +285,10 @@ fn light_tile_goes_on(t: u32, k: u32, last: u32) -> bool {
     }
     // Unseen for good: no view ray left alive can read its light on this plane or a later one
     // (from plane 2 on: plane 1's tiles are listed while the view rays are being counted).
-    // Tested every UNSEEN_TEST_PLANES planes, or at each listing of several: the test walks
-    // the tile's light to the last plane, and on every plane it was two fifths of the
-    // listing pass (soft light, CT head, 512²), while a tile ending up to three planes late
-    // is stepped 1.6 % more often.
+    // Tested every UNSEEN_TEST_PLANES planes, or at each listing of several (a view pass's,
+    // so a tile ends up to its planes less one late): the test walks the tile's light to the
+    // last plane, and on every plane it was two fifths of the listing pass (soft light, CT
+    // head, 512²), while a tile ending up to three planes late is stepped 1.6 % more often.
     if (unseen_tiles_end() && (P.culling.w & 2u) != 0u && k >= 2u
         && (k % UNSEEN_TEST_PLANES == 0u || last > k) && light_tile_unseen(t, k)) {
         atomicStore(&light_end[t], k);
@@ -883,9 +883,6 @@ const LIGHT_LISTED: u32 = 1u;
 // on the plane before: beams are found wherever they were stored (`load_beam_at`).
 const LIGHT_EDGE: u32 = 2u;
 
-// One beam from plane k-1 to plane k: drift, attenuation over the segment, soft light,
-// deposit on plane k, kick (Eq. 8 and Snell at the new position). `tile`: ij's light tile;
-// `mode`: LIGHT_WINDOW, LIGHT_LISTED or LIGHT_EDGE.
 // Beam b's segment from x0 to its position on plane z (b.pos): its power attenuated by the
 // particles and the medium along it, its shadow depth moved to where, weighted by the power
 // lost, the light was lost, and the data value at its end. Returns the segment's length.
@@ -910,6 +907,9 @@ fn attenuate(b: ptr<function, Beam>, x0: vec3<f32>, z: f32) -> f32 {
     return l;
 }
 
+// One beam from plane k-1 to plane k: drift, attenuation over the segment, soft light,
+// deposit on plane k, kick (Eq. 8 and Snell at the new position). `tile`: ij's light tile;
+// `mode`: LIGHT_WINDOW, LIGHT_LISTED or LIGHT_EDGE.
 fn beams_step(ij: vec2<u32>, k: u32, tile: u32, mode: u32) {
     if (ij.x >= P.beam_grid.x || ij.y >= P.beam_grid.y) {
         return;

@@ -95,11 +95,12 @@ pub struct RenderRequest {
     /// patterns that follow where the planes and beams fall average out.
     pub jitter: [f32; 3],
     /// Planes a view pass advances its rays over at most where the sweep allows several
-    /// (beams: their light stays where the light pass left it); 0 for the default. Each pass
-    /// keeps its rays' state in registers between planes, so 1 and the default give the same
-    /// image up to the rounding of the stored state, and with refraction up to that of where
-    /// rays not yet bent are carried straight over empty bricks instead of stepped (a pass
-    /// that spans more planes steps more of them: `step_empty_view_tiles`).
+    /// (beams: their light stays where the light pass left it); 0 for the default, at most 8
+    /// (the lists of light tiles hold a pass of 8 planes). Each pass keeps its rays' state in
+    /// registers between planes, so 1 and the default give the same image up to the rounding
+    /// of the stored state, and with refraction up to that of where rays not yet bent are
+    /// carried straight over empty bricks instead of stepped (a pass that spans more planes
+    /// steps more of them: `step_empty_view_tiles`).
     pub view_planes: u32,
     /// Keep stepping the light no view ray still alive can read (which a render stops, with
     /// the same image). Tests only: false in every real render.

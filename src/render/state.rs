@@ -219,8 +219,6 @@ fn tile_groups(view_groups: u32, light_tiles: u32) -> u32 {
     (view_groups + light_tiles).div_ceil(Pass::TILE * Pass::TILE)
 }
 
-/// Workgroups of a dispatch laid out in rows of `MAX_GROUPS_PER_ROW` (the shaders linearise
-/// them with the same width).
 /// With pass timings, a timestamp after a pass of the plane (`RenderStats::pass_ms`); the
 /// next one is `stamps`.
 fn pass_stamp<'r>(r: &mut Recorder<'r>, ts: &'r Timestamps, stamps: &mut u32, pass_timings: bool) {
@@ -230,6 +228,8 @@ fn pass_stamp<'r>(r: &mut Recorder<'r>, ts: &'r Timestamps, stamps: &mut u32, pa
     }
 }
 
+/// Workgroups of a dispatch laid out in rows of `MAX_GROUPS_PER_ROW` (the shaders linearise
+/// them with the same width).
 fn groups(n: u32) -> [u32; 3] {
     [n.clamp(1, MAX_GROUPS_PER_ROW), n.div_ceil(MAX_GROUPS_PER_ROW).max(1), 1]
 }
