@@ -164,7 +164,7 @@ fn tiny_light_bench_measures_the_planes_it_names() {
     }
     for r in gpu_rows {
         assert!(r.rel_l1.is_finite() && r.ms_per_plane > 0.0, "{r:?}");
-        // One-voxel texels, a beam per texel asked for: the cap of two per voxel does not
+        // One-voxel texels, a beam per texel asked for: the cap of 1.5 per voxel does not
         // bind, so one is traced (the grid's cells are whole pixels: exact).
         assert!((r.beams_per_texel - 1.0).abs() < 1e-6, "{r:?}");
         // Both renderers see the light leave the ball: the frame holds about the same power.

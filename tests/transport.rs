@@ -798,10 +798,10 @@ fn ball_lens_light_is_round_through_and_behind_the_focus() {
 
 #[test]
 fn refracted_beams_finer_than_half_a_voxel_are_not_traced_and_the_light_stays_as_close_to_the_exact_trace() {
-    // A ball of R = 8 voxels seen at four texels per voxel: the refracted beams are capped at
-    // two per voxel and axis (`REFRACTED_BEAMS_PER_VOXEL`), half a beam per texel, a quarter of
-    // the cells of a beam per texel (what 2² beams per texel give here, capped at four per
-    // voxel). Both against the exact trace of the continuous ball on the same texels
+    // A ball of R = 8 voxels seen at four texels per voxel: the refracted beams are capped per
+    // voxel (`VoxelCap::REFRACTED`: 1.5 per voxel and axis, but no coarser than half what is
+    // asked), half a beam per texel, a quarter of the cells that 2² beams per texel give here
+    // (a beam per texel). Both against the exact trace of the continuous ball on the same texels
     // (`graded_ball`, 8² rays per texel: a trace of the voxels with a ray per texel is itself
     // 0.1–0.2 off at four texels per voxel), through and behind the focus.
     let mut gpu = Gpu::new();

@@ -23,6 +23,7 @@ use crate::reference::graded_ball::GradedBall;
 use crate::reference::measure::{self, Region, ScalarImage};
 use crate::reference::plane_light::{self, nearest_sweep_plane, PlaneSettings};
 use crate::render::{DebugView, PreparedScene, RenderRequest, Renderer, ViewSetup};
+use crate::scene::view::REFRACTED_BEAMS_PER_VOXEL;
 use crate::scene::{Quality, Scene};
 use crate::transfer::{ColorRamp, Curve, TransferFunctions};
 use crate::volume::{Volume, VolumeError};
@@ -413,8 +414,8 @@ fn write_markdown(
          differences), the error of sampling the lens onto voxels alone. Relative L1 over [−1.5 R, 1.5 R]²; \
          power ratios GPU / exact; angular structure: largest deviation from the mean of the power in 16 \
          sectors of the annulus R/4–3R/4 (rings cancel, a star does not). Beams per texel: the light grid's \
-         cells per texel and axis as traced (refracted beams are capped at two per voxel and axis times the \
-         beams per texel asked for, so a row may trace fewer than its label asks). GPU ms per plane: median \
+         cells per texel and axis as traced (refracted beams are capped at {REFRACTED_BEAMS_PER_VOXEL} per voxel and axis \
+         times the beams per texel asked for, so a row may trace fewer than its label asks). GPU ms per plane: median \
          of {} renders.\n",
         renderer.context().info.name,
         plan.radius,

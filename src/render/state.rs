@@ -25,7 +25,9 @@ use super::{
     background, DebugView, Features, Immediates, Params, PreparedScene, RenderError, RenderOutput, RenderRequest,
     RenderStats, RenderedImage,
 };
-use crate::scene::view::{light_direction, BeamGrid, ViewSetup, MAX_LIGHT_VALUE, MIN_LIGHT_DIR_Z, MIN_VIEW_DIR_Z};
+use crate::scene::view::{
+    light_direction, BeamGrid, ViewSetup, VoxelCap, MAX_LIGHT_VALUE, MIN_LIGHT_DIR_Z, MIN_VIEW_DIR_Z,
+};
 use crate::scene::{LightTransport, Precision};
 
 /// Planes recorded per submission at most: keeps each submission short (progress,
@@ -558,15 +560,15 @@ pub(super) fn run(
     let deposits = features.transport == LightTransport::Beams && features.refraction;
     // Beams that carry only the unscattered light: at most one per voxel where they keep
     // their cells (no refraction), a few where they are bent.
-    let per_voxel = if features.transport != LightTransport::Beams || features.scatter || features.lbm {
+    let voxel_cap = if features.transport != LightTransport::Beams || features.scatter || features.lbm {
         None
     } else if features.refraction {
-        Some(crate::scene::view::REFRACTED_BEAMS_PER_VOXEL)
+        Some(VoxelCap::REFRACTED)
     } else {
-        Some(1.0)
+        Some(VoxelCap::UNREFRACTED)
     };
     let grid = view
-        .beam_grid(light, scene.quality.beams_per_texel, !deposits, per_voxel)
+        .beam_grid(light, scene.quality.beams_per_texel, !deposits, voxel_cap)
         .shifted(req.jitter[1], req.jitter[2]);
     let mut layout = Layout::new(&view, grid, light_channels(&features, req.debug_view));
     if features.transport == LightTransport::Beams && !diagnoses_light {

@@ -191,8 +191,8 @@ pub struct Quality {
     pub light_transport: LightTransport,
     /// Light-grid cells (beams) per image pixel and axis on the first plane: 1 maps one to
     /// each pixel; 2 traces four times as many for smoother caustics. Unrefracted light also
-    /// gets at most this many per voxel and axis, refracted light twice this many
-    /// (`ViewSetup::beam_grid`, `REFRACTED_BEAMS_PER_VOXEL`).
+    /// gets at most this many per voxel and axis, refracted light 1.5 times this many but
+    /// no fewer than half this many per pixel (`ViewSetup::beam_grid`, `VoxelCap`).
     pub beams_per_texel: f32,
     /// Reconstruction of ∇η.
     pub gradient: Gradient,

@@ -32,10 +32,46 @@ pub const SWEEP_MARGIN_VOXELS: f32 = 1.0;
 pub const MAX_BEAMS_PER_PIXEL: f32 = 2.0;
 
 /// Refracted beams per voxel and axis at most (times `beams_per_texel`), where pixels are
-/// smaller than that. The CT head's full-effects render at 512² (2.1 plane-0 pixels per
-/// voxel) against one with twice the beams per texel at Δs = ¼: relative L1 0.0559 with a beam
-/// per pixel, 0.0567 at 1.6 and 0.0593 at 1.1 beams per voxel, in 17.2, 12.2 and 8.7 s.
-pub const REFRACTED_BEAMS_PER_VOXEL: f32 = 2.0;
+/// smaller than that. Refracted light is bent by an index field that is trilinear between
+/// voxels, and beams much finer than it resolve little more. The CT head's full-effects render
+/// at 512² (2.1 plane-0 pixels per voxel) against one with four beams per voxel at Δs = ¼:
+/// relative L1 0.0470 at 2, 0.0468 at 1.5 and 0.0471 at 1.25 beams per voxel. The glass ball
+/// of `bench --light` (R = 16, two texels per voxel) against the exact trace of the
+/// continuous ball, mean relative L1 over its five planes at Δs 1, ½ and ¼: 0.120, 0.116 and
+/// 0.107 at 2 beams per voxel, 0.109, 0.113 and 0.109 at 1.5. The viewer's full frame of
+/// the CT head (644×768): 12.5 s at 2, 9.6–10.1 s at 1.5.
+pub const REFRACTED_BEAMS_PER_VOXEL: f32 = 1.5;
+
+/// How many times coarser per axis than `beams_per_texel` asks (in pixels at the volume's
+/// centre) the cap of [`REFRACTED_BEAMS_PER_VOXEL`] may make refracted beams. Where pixels are
+/// much smaller than voxels the cap alone makes a beam several pixels wide, and its deposit (a
+/// box of its footprint) blurs the caustic on the image: the R = 8 ball at four texels per
+/// voxel (`tests/transport.rs`) at 1.5 beams per voxel (2.7 pixels a beam) is 0.014–0.053
+/// further from the exact trace than with twice the beams, at 2 pixels a beam within 0.02.
+pub const REFRACTED_MAX_COARSENING: f32 = 2.0;
+
+/// A floor on the light grid's cells where pixels are smaller than voxels
+/// ([`ViewSetup::beam_grid`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct VoxelCap {
+    /// Beams per voxel and axis at most (times `beams_per_texel`).
+    pub beams_per_voxel: f32,
+    /// How many times coarser per axis than asked the cap may make the cells.
+    pub max_coarsening: f32,
+}
+
+impl VoxelCap {
+    /// Refracted beams: [`REFRACTED_BEAMS_PER_VOXEL`], [`REFRACTED_MAX_COARSENING`].
+    pub const REFRACTED: VoxelCap = VoxelCap {
+        beams_per_voxel: REFRACTED_BEAMS_PER_VOXEL,
+        max_coarsening: REFRACTED_MAX_COARSENING,
+    };
+    /// Beams that keep their cells: one per voxel, however wide that makes them.
+    pub const UNREFRACTED: VoxelCap = VoxelCap {
+        beams_per_voxel: 1.0,
+        max_coarsening: f32::INFINITY,
+    };
+}
 
 /// Pixels of the image whose rays can meet the volume: the projection of its box, a pixel
 /// wider on each side for the bilinear taps of light lookups. Half-open: x0 ≤ x < x1.
@@ -257,19 +293,21 @@ impl ViewSetup {
     /// power keep one cell per plane-0 pixel, so that an unrefracted beam is never wider than
     /// a pixel (it lands on the finest level of the deposit pyramid).
     ///
-    /// With `per_voxel` = Some(n) the cells are also no smaller than a voxel over n times
-    /// `beams_per_texel`. Light that keeps its cells (n = 1) carries no detail across them
-    /// finer than the volume that shadows it (and the view takes the last voxel of its way
-    /// along each sample's own light line), so where a pixel is smaller than a voxel a finer
-    /// grid only costs time. Refracted light is bent by an index field that is trilinear
-    /// between voxels; beams finer than it still resolve where they converge a little better
-    /// ([`REFRACTED_BEAMS_PER_VOXEL`]).
+    /// With `voxel_cap` the cells are also no smaller than a voxel over its
+    /// `beams_per_voxel` times `beams_per_texel`, but no more than its `max_coarsening` times
+    /// coarser than asked. Light that keeps its cells ([`VoxelCap::UNREFRACTED`]) carries no
+    /// detail across them finer than the volume that shadows it (and the view takes the last
+    /// voxel of its way along each sample's own light line), so where a pixel is smaller than
+    /// a voxel a finer grid only costs time. Refracted light is bent by an index field that is
+    /// trilinear between voxels; beams a little finer than it still resolve where they
+    /// converge, and beams wider than two pixels blur the caustic on the image
+    /// ([`VoxelCap::REFRACTED`]).
     pub fn beam_grid(
         &self,
         light: Vec3,
         beams_per_texel: f32,
         per_centre_pixel: bool,
-        per_voxel: Option<f32>,
+        voxel_cap: Option<VoxelCap>,
     ) -> BeamGrid {
         let z0 = self.z_first;
         let z_last = self.plane_z(self.planes - 1);
@@ -299,17 +337,22 @@ impl ViewSetup {
         let lo = s_lo.max(n_lo);
         let hi = s_hi.min(n_hi).max(lo);
         let z_centre = self.view_from_world.transform_point3(Vec3::ZERO).z;
-        let pixels_per_centre_pixel = if per_centre_pixel && self.perspective && z_centre > z0 {
+        let centre_pixel = if self.perspective && z_centre > z0 {
             z_centre / z0
         } else {
             1.0
         };
+        let pixels_per_centre_pixel = if per_centre_pixel { centre_pixel } else { 1.0 };
         let mut stride = pixels_per_centre_pixel / beams_per_texel;
-        if let Some(per_voxel) = per_voxel {
+        if let Some(cap) = voxel_cap {
             // A voxel's cross-section is the same on every plane (parallel light): its size in
             // plane-0 pixels.
             let pixels_per_unit = self.projection[0] / if self.perspective { z0 } else { 1.0 };
-            stride = stride.max(self.voxel * pixels_per_unit / (per_voxel * beams_per_texel));
+            let per_voxel = self.voxel * pixels_per_unit / (cap.beams_per_voxel * beams_per_texel);
+            // Coarser than asked by at most `max_coarsening`, counted in pixels at the
+            // volume's centre, where the light is seen.
+            let coarsest = cap.max_coarsening * centre_pixel / beams_per_texel;
+            stride = stride.max(per_voxel.min(coarsest));
         }
         let pixels = (self.width as f32 * self.height as f32).max(1.0);
         let budget = MAX_BEAMS_PER_PIXEL * pixels * beams_per_texel * beams_per_texel;
@@ -406,6 +449,38 @@ mod tests {
         assert!(centre.x.abs() < 1e-3 && centre.y.abs() < 1e-3 && centre.z > 0.0);
         let tex = v.volume_from_view().transform_point3(centre);
         assert!((tex - Vec3::splat(0.5)).length() < 1e-4);
+    }
+
+    #[test]
+    fn voxel_caps_coarsen_the_light_grid_only_where_pixels_are_smaller_than_voxels() {
+        let mut scene = builtin("ball-lens").unwrap().scene;
+        for projection in [Projection::Orthographic, Projection::Perspective] {
+            scene.camera.projection = projection;
+            // 32³ voxels over 256² pixels: a voxel is several pixels wide.
+            let v = ViewSetup::new(&scene, [32; 3], [1.0; 3], 256, 256).unwrap();
+            let stride = |cap| v.beam_grid(Vec3::Z, 1.0, false, cap).stride;
+            let asked = stride(None);
+            let kept = stride(Some(VoxelCap::UNREFRACTED));
+            let refracted = stride(Some(VoxelCap::REFRACTED));
+            let z_centre = v.view_from_world.transform_point3(Vec3::ZERO).z;
+            let centre_pixel = if v.perspective { z_centre / v.z_first } else { 1.0 };
+            // Beams that keep their cells: one per voxel, several pixels wide.
+            assert!(kept > 2.0 * asked, "{projection:?}: {kept} against {asked}");
+            // Refracted: 1.5 per voxel would be wider than two pixels at the volume's centre
+            // (a beam per texel asked for), which they are then.
+            let expected = REFRACTED_MAX_COARSENING * centre_pixel;
+            assert!(expected > asked && expected < kept / REFRACTED_BEAMS_PER_VOXEL);
+            assert!(
+                (refracted / expected - 1.0).abs() < 1e-4,
+                "{projection:?}: {refracted} against {expected}"
+            );
+            // 32³ voxels over 16² pixels: a pixel is larger than a voxel and no cap binds.
+            let v = ViewSetup::new(&scene, [32; 3], [1.0; 3], 16, 16).unwrap();
+            let stride = |cap| v.beam_grid(Vec3::Z, 1.0, false, cap).stride;
+            for cap in [VoxelCap::UNREFRACTED, VoxelCap::REFRACTED] {
+                assert_eq!(stride(Some(cap)), stride(None), "{projection:?}");
+            }
+        }
     }
 
     #[test]
