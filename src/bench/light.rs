@@ -415,7 +415,8 @@ fn write_markdown(
          power ratios GPU / exact; angular structure: largest deviation from the mean of the power in 16 \
          sectors of the annulus R/4–3R/4 (rings cancel, a star does not). Beams per texel: the light grid's \
          cells per texel and axis as traced (refracted beams are capped at {REFRACTED_BEAMS_PER_VOXEL} per voxel and axis \
-         times the beams per texel asked for, so a row may trace fewer than its label asks). GPU ms per plane: median \
+         times the beams per texel asked for, but no coarser than half of it, so a row may trace fewer than its \
+         label asks). GPU ms per plane: median \
          of {} renders.\n",
         renderer.context().info.name,
         plan.radius,

@@ -284,6 +284,17 @@ impl ViewSetup {
         }
     }
 
+    /// Plane-0 pixels per pixel at the volume's centre: z_centre / z0 in perspective (when
+    /// the centre lies beyond the first plane), 1 otherwise.
+    fn plane0_pixels_per_centre_pixel(&self) -> f32 {
+        let z_centre = self.view_from_world.transform_point3(Vec3::ZERO).z;
+        if self.perspective && z_centre > self.z_first {
+            z_centre / self.z_first
+        } else {
+            1.0
+        }
+    }
+
     /// The beams of the forward transport for light travelling along `light` (view space,
     /// unit, z > 0), `beams_per_texel` per pixel and axis on plane 0. They cover the box's
     /// shadow (what the volume can change) intersected with the light that reaches the pixels
@@ -339,12 +350,7 @@ impl ViewSetup {
         let (n_lo, n_hi) = bounds(&mut needed.into_iter());
         let lo = s_lo.max(n_lo);
         let hi = s_hi.min(n_hi).max(lo);
-        let z_centre = self.view_from_world.transform_point3(Vec3::ZERO).z;
-        let centre_pixel = if self.perspective && z_centre > z0 {
-            z_centre / z0
-        } else {
-            1.0
-        };
+        let centre_pixel = self.plane0_pixels_per_centre_pixel();
         let pixels_per_centre_pixel = if per_centre_pixel { centre_pixel } else { 1.0 };
         let mut stride = pixels_per_centre_pixel / beams_per_texel;
         if let Some(cap) = voxel_cap {
@@ -465,12 +471,12 @@ mod tests {
             let asked = stride(None);
             let kept = stride(Some(VoxelCap::UNREFRACTED));
             let refracted = stride(Some(VoxelCap::REFRACTED));
-            let z_centre = v.view_from_world.transform_point3(Vec3::ZERO).z;
-            let centre_pixel = if v.perspective { z_centre / v.z_first } else { 1.0 };
+            let centre_pixel = v.plane0_pixels_per_centre_pixel();
             // Beams that keep their cells: one per voxel, several pixels wide.
             assert!(kept > 2.0 * asked, "{projection:?}: {kept} against {asked}");
             // Refracted: 1.5 per voxel would be wider than two pixels at the volume's centre
-            // (a beam per texel asked for), which they are then.
+            // (a beam per texel asked for), which they are then (to 1e-4: the f32 rounding of
+            // the stride's few operations).
             let expected = REFRACTED_MAX_COARSENING * centre_pixel;
             assert!(expected > asked && expected < kept / REFRACTED_BEAMS_PER_VOXEL);
             assert!(
