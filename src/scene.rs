@@ -33,7 +33,7 @@ pub use lighting::{
 pub use prepared::{PrepareError, PreparedScene, VolumeInfo};
 pub use quality::{
     Gradient, LightTransport, MultipleScattering, Precision, Quality, Toggle, BACKWARD_MAX_CONCENTRATION,
-    MAX_BEAMS_PER_TEXEL, MIN_BEAMS_PER_TEXEL,
+    MAX_BEAMS_PER_TEXEL, MAX_VOLUME_LEVEL, MIN_BEAMS_PER_TEXEL,
 };
 pub use source::{TransferSource, VolumeSource};
 pub use view::{camera_position, light_direction, ViewSetup};

@@ -8,50 +8,71 @@ use std::time::{Duration, Instant};
 
 use crate::render::RenderedImage;
 
-/// One quality level: image scale and sample-distance multiplier against the full render.
+/// One quality level: image size, sample-distance multiplier and light grid against the full
+/// render, and the volume's resolution.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Level {
     pub name: &'static str,
-    /// Fraction of the viewport's width and height rendered.
+    /// Fraction of the viewport's width and height rendered (at most, with `pixels`).
     pub scale: f32,
+    /// Pixels rendered, whatever the viewport's size: the scale that gives at least this
+    /// many, unless `scale` is smaller (0: `scale` alone). A level that keeps up with a drag
+    /// costs the same in any window.
+    pub pixels: u32,
     /// Factor on the scene's sample distance (fewer planes).
     pub step_factor: f32,
     /// Factor on the scene's beams per texel (a coarser light grid; at least
     /// `MIN_BEAMS_PER_TEXEL`).
     pub beams_factor: f32,
+    /// `quality.volume_level` at least: 1 samples the volume at half resolution.
+    pub volume_level: u32,
 }
+
+/// The interactive level's pixels: those of 160×120.
+pub const INTERACTIVE_PIXELS: u32 = 160 * 120;
 
 /// Coarse to fine; the last is the full-quality frame.
 pub const LEVELS: [Level; 4] = [
     Level {
         name: "interactive",
-        // 128×96 at a 1024×768 viewport: 0.2–0.3 s per frame on the CT head with every effect
-        // on lavapipe with 2 cores. Half the beams per texel: at this size the light grid
-        // (which covers more than the image) is about half the frame's time.
-        scale: 0.125,
-        step_factor: 4.0,
-        beams_factor: 0.5,
+        // 160×120 pixels' worth in any viewport (127×152 in the portrait viewport of a
+        // 1024×768 window with the panel), planes 6 voxels apart, a beam per 4 pixels and
+        // axis, from the half-resolution volume: 125–145 ms per frame on the CT head with
+        // every effect on lavapipe with 2 cores. Its pixels and planes are several voxels
+        // apart; at full resolution every trilinear fetch of the volumes lands on memory no
+        // neighbouring sample touched (30 % more time for a less smooth image).
+        scale: 0.25,
+        pixels: INTERACTIVE_PIXELS,
+        step_factor: 6.0,
+        beams_factor: 0.25,
+        volume_level: 1,
     },
     Level {
         name: "draft",
-        // The interactive level's planes and light grid at twice its resolution: a sharper
-        // image within about a second of letting go, while the preview takes several on
-        // real CT (the CT head's at 322×384: 5.3 s on lavapipe).
-        scale: 0.25,
+        // Three times the interactive level's pixels with planes 4 voxels apart, a beam per
+        // 2 pixels: a sharper image within about a second of letting go, while the preview
+        // takes several on real CT (the CT head's at 322×384: 2.8–3.0 s on lavapipe).
+        scale: 0.5,
+        pixels: 3 * INTERACTIVE_PIXELS,
         step_factor: 4.0,
         beams_factor: 0.5,
+        volume_level: 1,
     },
     Level {
         name: "preview",
         scale: 0.5,
+        pixels: 0,
         step_factor: 2.0,
         beams_factor: 1.0,
+        volume_level: 0,
     },
     Level {
         name: "full",
         scale: 1.0,
+        pixels: 0,
         step_factor: 1.0,
         beams_factor: 1.0,
+        volume_level: 0,
     },
 ];
 
@@ -68,7 +89,19 @@ pub const IDLE_AFTER: Duration = Duration::from_millis(200);
 impl Level {
     /// The render size for a viewport (at least 1×1).
     pub fn size(&self, width: u32, height: u32) -> (u32, u32) {
-        let s = |v: u32| ((v as f32 * self.scale).round() as u32).max(1);
+        let area = width as f64 * height as f64;
+        let mut scale = self.scale as f64;
+        if self.pixels > 0 && area > 0.0 {
+            // Rounded up, so that the product is not short of `pixels` by a rounding.
+            let (w, h) = (width as f64, height as f64);
+            let fit = (self.pixels as f64 / area).sqrt();
+            let mut s = fit;
+            while s < scale && (w * s).round() * (h * s).round() < self.pixels as f64 {
+                s += 0.25 / w.max(h);
+            }
+            scale = scale.min(s);
+        }
+        let s = |v: u32| ((v as f64 * scale).round() as u32).max(1);
         (s(width), s(height))
     }
 }
@@ -301,8 +334,25 @@ mod tests {
 
     #[test]
     fn level_sizes() {
-        assert_eq!(LEVELS[0].size(1024, 768), (128, 96));
-        assert_eq!(LEVELS[1].size(1024, 768), (256, 192));
+        // The interactive level renders 160×120 pixels' worth in any viewport, the draft three
+        // times as many, at most a quarter and a half of the viewport per axis.
+        assert_eq!(LEVELS[0].size(1024, 768), (160, 120));
+        let (w, h) = LEVELS[0].size(644, 768);
+        assert!(
+            w * h >= INTERACTIVE_PIXELS && w * h < INTERACTIVE_PIXELS + 400,
+            "{w}×{h}"
+        );
+        assert!(
+            (w as f32 / h as f32 - 644.0 / 768.0).abs() < 0.01,
+            "{w}×{h} keeps the viewport's shape"
+        );
+        let (w, h) = LEVELS[1].size(644, 768);
+        assert!(
+            w * h >= 3 * INTERACTIVE_PIXELS && w * h < 3 * INTERACTIVE_PIXELS + 700,
+            "{w}×{h}"
+        );
+        assert_eq!(LEVELS[0].size(320, 240), (80, 60), "at most a quarter per axis");
+        assert_eq!(LEVELS[1].size(320, 240), (160, 120), "at most half per axis");
         // Each level is at least as fine as the one before.
         for w in LEVELS.windows(2) {
             assert!(

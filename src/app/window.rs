@@ -18,7 +18,7 @@ use winit::event_loop::{ActiveEventLoop, ControlFlow};
 use winit::window::{Window, WindowId};
 
 use super::panel::{Action, ViewState};
-use super::progressive::{Progressive, FULL, LEVELS};
+use super::progressive::{Progressive, LEVELS};
 use super::raster::{Painter, Target};
 use super::worker::{Reply, Request, Worker};
 use super::ViewError;
@@ -218,11 +218,8 @@ impl App {
             scene.quality.sample_distance = (scene.quality.sample_distance * level.step_factor).min(16.0);
             scene.quality.beams_per_texel =
                 (scene.quality.beams_per_texel * level.beams_factor).max(crate::scene::MIN_BEAMS_PER_TEXEL);
-            let scale = if job.level == FULL { 1.0 } else { level.scale };
-            let (w, h) = (
-                ((render_size.0 as f32 * scale).round() as u32).max(1),
-                ((render_size.1 as f32 * scale).round() as u32).max(1),
-            );
+            scene.quality.volume_level = scene.quality.volume_level.max(level.volume_level);
+            let (w, h) = level.size(render_size.0, render_size.1);
             self.cancel = Arc::new(AtomicBool::new(false));
             self.worker.send(Request::Frame {
                 job,

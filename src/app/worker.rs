@@ -218,6 +218,9 @@ fn handle(
                 let mut req = RenderRequest::new(width, height);
                 req.cancel = Some(cancel);
                 req.pass_timings = pass_timings;
+                // The coarse levels read the volumes' half-resolution level: made with the
+                // first frame, so no level uploads the volumes again.
+                req.keep_coarse_volume = true;
                 // Accumulation passes move the planes and the light grid (pass 0 does not).
                 req.jitter = jitter_sequence(job.pass, ACCUMULATE);
                 renderer.render(prepared, &req)

@@ -4,6 +4,7 @@
 
 mod accumulate;
 pub mod bricks;
+mod coarse;
 mod features;
 pub mod gradient;
 pub mod layers;
@@ -121,6 +122,10 @@ pub struct RenderRequest {
     /// plane at 8×8), so a render leaves them out unless asked; the total GPU time
     /// ([`RenderStats::gpu_ms`]) is timed either way.
     pub pass_timings: bool,
+    /// Give the volumes their half-resolution level even where this render does not read it
+    /// (`quality.volume_level` 0), so that renders which do find it kept: the viewer, whose
+    /// coarse levels read it.
+    pub keep_coarse_volume: bool,
 }
 
 impl RenderRequest {
@@ -139,6 +144,7 @@ impl RenderRequest {
             step_empty_view_tiles: false,
             per_plane_light: false,
             pass_timings: false,
+            keep_coarse_volume: false,
         }
     }
 }

@@ -623,7 +623,8 @@ pub(super) fn run(
     let window = prepared.window();
     // Scene textures are kept between renders while what they hold is unchanged (an
     // interactive view changes mostly the camera and light).
-    let key = TexturesKey::new(prepared, &features);
+    let coarse = scene.quality.volume_level > 0;
+    let key = TexturesKey::new(prepared, &features, coarse || req.keep_coarse_volume);
     let mut pending = None;
     match cache.as_mut() {
         Some(c) if c.matches(&key) => {}
@@ -651,6 +652,7 @@ pub(super) fn run(
                 &prepared.tf,
                 scene.quality.sample_distance,
                 prepared.env.as_ref(),
+                key.coarse(),
             )?;
             *cache = Some(CachedTextures::new(key, textures));
             pending = Some(upload);
@@ -751,7 +753,14 @@ pub(super) fn run(
             ("params", Resource::Buffer(&params)),
             ("volume_tex", Resource::Image(&t.volume)),
             ("linear_clamp", Resource::Sampler(&t.linear_clamp)),
-            ("volume_sampler", Resource::Sampler(&t.volume_sampler)),
+            (
+                "volume_sampler",
+                Resource::Sampler(if coarse {
+                    &t.volume_sampler_coarse
+                } else {
+                    &t.volume_sampler
+                }),
+            ),
             ("gradient_tex", Resource::Image(&t.gradient)),
             ("orientation_tex", Resource::Image(&t.orientation)),
             ("particle_table", Resource::Image(&t.particle_table)),

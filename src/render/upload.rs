@@ -29,6 +29,8 @@ pub struct SceneTextures {
     pub env_levels: u32,
     pub linear_clamp: Sampler,
     pub volume_sampler: Sampler,
+    /// The volumes' half-resolution level (`quality.volume_level = 1`).
+    pub volume_sampler_coarse: Sampler,
     pub env_sampler: Sampler,
     /// Which 8³ bricks absorb or show, or with refraction change η (`bricks.rs`), one u32
     /// each.
@@ -179,18 +181,28 @@ struct Staged {
 }
 
 impl Staged {
-    /// Creates a sampled 3D image of `extent` texels in `format` and stages `texels` for it.
-    fn volume(
+    /// Creates a sampled 3D image of `extent` texels in `format` and stages `texels` for it;
+    /// with `coarse`, its half-resolution level too (`coarse.rs`), as a second mip level.
+    fn volume<T: super::coarse::Channels + bytemuck::Pod>(
         &mut self,
         ctx: &Arc<Context>,
         label: &str,
         format: Format,
         extent: [u32; 3],
-        texels: Box<dyn Blob>,
+        texels: Vec<T>,
+        coarse: bool,
     ) -> Result<(), GpuError> {
-        let image = Image::new(ctx, ImageDesc::sampled(label, format, extent, true, 1))?;
-        self.uploads
-            .push((self.images.len(), vec![(self.staging.push_owned(texels), extent)]));
+        let dims = extent.map(|n| n as usize);
+        // A placeholder texel has no finer level to filter.
+        let half = (coarse && dims.iter().product::<usize>() > 1).then(|| super::coarse::half_level(&texels, dims));
+        let levels = if half.is_some() { 2 } else { 1 };
+        let image = Image::new(ctx, ImageDesc::sampled(label, format, extent, true, levels))?;
+        let mut staged = vec![(self.staging.push_owned(Box::new(texels)), extent)];
+        if let Some(half) = half {
+            let half_extent = super::coarse::half_dims(dims).map(|n| n as u32);
+            staged.push((self.staging.push_owned(Box::new(half)), half_extent));
+        }
+        self.uploads.push((self.images.len(), staged));
         self.images.push(image);
         Ok(())
     }
@@ -211,6 +223,7 @@ impl SceneTextures {
     /// Creates the textures and stages their contents; [`SceneTextures::record_upload`]
     /// copies them in. `orientation`: make the orientation volume. `refraction`: the η source
     /// (the η volume with its value range, or the volume itself) for the gradient volume.
+    /// `coarse`: give the volumes their half-resolution level (`quality.volume_level`).
     #[allow(clippy::too_many_arguments)]
     pub fn upload(
         ctx: &Arc<Context>,
@@ -221,6 +234,7 @@ impl SceneTextures {
         tf: &TransferFunctions,
         sample_distance: f32,
         env: Option<&EnvMap>,
+        coarse: bool,
     ) -> Result<(Self, PendingUpload), GpuError> {
         let mut staged = Staged::default();
         let vol_dims = volume.dims;
@@ -264,20 +278,22 @@ impl SceneTextures {
             ([1, 1, 1], vec![[0i16; 4]])
         };
         // Each volume's texels go to the staging buffer as they are, once all are made.
-        staged.volume(ctx, "volume", Format::R16_UNORM, vol_extent, Box::new(samples))?;
+        staged.volume(ctx, "volume", Format::R16_UNORM, vol_extent, samples, coarse)?;
         staged.volume(
             ctx,
             "gradient volume",
             Format::R16G16B16A16_SFLOAT,
             gradient_extent,
-            Box::new(gradient_texels),
+            gradient_texels,
+            coarse,
         )?;
         staged.volume(
             ctx,
             "orientation volume",
             Format::R16G16B16A16_SNORM,
             orientation_extent,
-            Box::new(orientation_texels),
+            orientation_texels,
+            coarse,
         )?;
 
         let table_texels = TableTexels::new(tf, sample_distance);
@@ -336,6 +352,7 @@ impl SceneTextures {
                 linear: true,
                 mipmaps: false,
                 address: [A::CLAMP_TO_EDGE; 3],
+                level: 0,
             },
         )?;
         let volume_sampler = Sampler::new(
@@ -345,6 +362,19 @@ impl SceneTextures {
                 linear: true,
                 mipmaps: false,
                 address: [A::CLAMP_TO_BORDER; 3],
+                level: 0,
+            },
+        )?;
+        // The same at the half-resolution level, where the volumes have one (a volume without
+        // it reads its only level through this sampler too).
+        let volume_sampler_coarse = Sampler::new(
+            ctx,
+            &SamplerDesc {
+                label: "volume at half resolution (linear, zero outside)".into(),
+                linear: true,
+                mipmaps: false,
+                address: [A::CLAMP_TO_BORDER; 3],
+                level: 1,
             },
         )?;
         let env_sampler = Sampler::new(
@@ -354,6 +384,7 @@ impl SceneTextures {
                 linear: true,
                 mipmaps: true,
                 address: [A::REPEAT, A::CLAMP_TO_EDGE, A::CLAMP_TO_EDGE],
+                level: 0,
             },
         )?;
 
@@ -381,6 +412,7 @@ impl SceneTextures {
             env_levels: env_levels.len() as u32,
             linear_clamp,
             volume_sampler,
+            volume_sampler_coarse,
             env_sampler,
             bricks,
             brick_dims: occupancy.dims,
@@ -504,10 +536,13 @@ pub struct TexturesKey {
     tf: TransferFunctions,
     sample_distance: f32,
     environment: crate::scene::Environment,
+    /// The volumes have (or are asked for) their half-resolution level.
+    coarse: bool,
 }
 
 impl TexturesKey {
-    pub fn new(prepared: &super::PreparedScene, features: &super::Features) -> Self {
+    /// What `prepared` needs; `coarse`: with the volumes' half-resolution level.
+    pub fn new(prepared: &super::PreparedScene, features: &super::Features, coarse: bool) -> Self {
         TexturesKey {
             volume: prepared.volume.clone(),
             eta_volume: prepared.eta_volume.clone().filter(|_| features.eta_volume),
@@ -517,7 +552,13 @@ impl TexturesKey {
             tf: prepared.tf.clone(),
             sample_distance: prepared.scene.quality.sample_distance,
             environment: prepared.scene.environment.clone(),
+            coarse,
         }
+    }
+
+    /// Whether the volumes are asked for their half-resolution level.
+    pub fn coarse(&self) -> bool {
+        self.coarse
     }
 
     fn same(&self, other: &TexturesKey) -> bool {
@@ -531,7 +572,7 @@ impl TexturesKey {
 
     /// The same but for the transfer functions other than η where a gradient volume was made
     /// from η, and the sample distance: what [`SceneTextures::replace_transfer`] brings up to
-    /// date.
+    /// date. Textures with the half-resolution level serve a key without it.
     fn same_but_transfer(&self, other: &TexturesKey) -> bool {
         let eta_same = match (&self.eta_volume, &other.eta_volume) {
             (Some(a), Some(b)) => Arc::ptr_eq(a, b),
@@ -545,6 +586,7 @@ impl TexturesKey {
             && self.window == other.window
             && (self.gradient.is_none() || self.tf.eta == other.tf.eta)
             && self.environment == other.environment
+            && (self.coarse || !other.coarse)
     }
 }
 
@@ -604,7 +646,11 @@ impl CachedTextures {
     ) -> Result<PendingUpload, GpuError> {
         self.uploaded.set(false);
         let pending = update(&mut self.textures)?;
-        self.key = key;
+        // The volume images stay, with whatever levels they have.
+        self.key = TexturesKey {
+            coarse: self.key.coarse,
+            ..key
+        };
         Ok(pending)
     }
 

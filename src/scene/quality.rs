@@ -203,6 +203,23 @@ pub struct Quality {
     /// The lattice-Boltzmann mode's grid and convergence (`[quality.lbm]`).
     #[serde(skip_serializing_if = "super::LbmSettings::is_default")]
     pub lbm: super::LbmSettings,
+    /// Resolution of the volume the passes sample: 0 the volume as loaded, 1 half of it per
+    /// axis (each texel the box-filtered mean of the voxels it covers; an eighth of the texels
+    /// more on the device). For coarse renders whose planes and pixels are two voxels apart
+    /// or more, which the full resolution only aliases: the viewer's first levels. The bricks
+    /// and cells that skip empty space stay the full resolution's, so a faint fringe of the
+    /// half level's blur, up to two voxels beyond what shows at full resolution, is left out.
+    /// Left out of written scenes when 0.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub volume_level: u32,
+}
+
+/// The finest `quality.volume_level` but one: the volumes have at most their half-resolution
+/// level beside their own.
+pub const MAX_VOLUME_LEVEL: u32 = 1;
+
+fn is_zero(v: &u32) -> bool {
+    *v == 0
 }
 
 impl Default for Quality {
@@ -222,6 +239,7 @@ impl Default for Quality {
             gradient: Gradient::Central,
             multiple_scattering: MultipleScattering::Auto,
             lbm: super::LbmSettings::default(),
+            volume_level: 0,
         }
     }
 }
@@ -259,6 +277,26 @@ mod tests {
             assert_eq!(Gradient::parse(g.name()), Some(g));
         }
         assert!(toml::from_str::<Quality>("gradient = \"fourthorder\"").is_err());
+    }
+
+    #[test]
+    fn the_volume_level_parses_is_checked_and_is_left_out_of_written_scenes_at_zero() {
+        let parsed: Quality = toml::from_str("volume_level = 1").unwrap();
+        assert_eq!(parsed.volume_level, 1);
+        assert!(!toml::to_string(&Quality::default()).unwrap().contains("volume_level"));
+        assert!(toml::to_string(&parsed).unwrap().contains("volume_level = 1"));
+        let tf = crate::transfer::TransferFunctions::default();
+        for (level, ok) in [(0, true), (1, true), (2, false)] {
+            let quality = Quality {
+                volume_level: level,
+                ..Quality::default()
+            };
+            let checked = crate::scene::Scene::head_on("test", &tf, 1.0, quality).validate();
+            assert_eq!(checked.is_ok(), ok, "volume_level {level}: {checked:?}");
+            if let Err(e) = checked {
+                assert!(e.to_string().contains("quality.volume_level 2 must be 0"), "{e}");
+            }
+        }
     }
 
     #[test]

@@ -34,6 +34,12 @@ impl Scene {
                 q.beams_per_texel
             ));
         }
+        if q.volume_level > super::MAX_VOLUME_LEVEL {
+            return bad(format!(
+                "quality.volume_level {} must be 0 (the volume as loaded) or 1 (half resolution)",
+                q.volume_level
+            ));
+        }
         q.lbm.check().map_err(SceneError::Invalid)?;
         if q.multiple_scattering == super::MultipleScattering::Spread
             && q.light_transport != super::LightTransport::Beams

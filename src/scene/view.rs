@@ -150,7 +150,8 @@ pub struct ViewSetup {
     pub z_first: f32,
     /// Distance between planes in world units (Δs).
     pub step: f32,
-    /// The smallest voxel dimension in world units.
+    /// The smallest voxel dimension in world units, of the volume the passes sample (its half
+    /// level at `quality.volume_level` 1).
     pub voxel: f32,
     pub planes: u32,
     pub projection: [f32; 4],
@@ -195,7 +196,18 @@ impl ViewSetup {
 
         let min_spacing = spacing.iter().copied().fold(f32::INFINITY, f32::min);
         let step = scene.quality.sample_distance * min_spacing;
-        let margin = SWEEP_MARGIN_VOXELS * min_spacing;
+        // The voxels the passes sample: at `quality.volume_level` 1 the half level's, whose
+        // trilinear reach beyond the box and cross-section are theirs (the sample distance
+        // still counts the volume's own).
+        let sampled = if scene.quality.volume_level > 0 {
+            let coarse = crate::volume::half_level_dims(dims);
+            (0..3)
+                .map(|a| extent[a] / coarse[a] as f32)
+                .fold(f32::INFINITY, f32::min)
+        } else {
+            min_spacing
+        };
+        let margin = SWEEP_MARGIN_VOXELS * sampled;
         let corners = box_corners(extent, margin);
         let (mut z_min, mut z_max) = (f32::INFINITY, f32::NEG_INFINITY);
         for c in &corners {
@@ -228,7 +240,7 @@ impl ViewSetup {
             radius,
             z_first: z_min,
             step,
-            voxel: min_spacing,
+            voxel: sampled,
             planes: planes as u32,
             projection: [f, f, w * 0.5, h * 0.5],
             perspective,

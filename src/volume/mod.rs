@@ -42,6 +42,12 @@ pub struct Volume {
     pub value_range: [f32; 2],
 }
 
+/// The voxels of a volume's half-resolution level (`quality.volume_level` 1): ⌊n/2⌋ per
+/// axis, at least 1, a mip level's extent.
+pub fn half_level_dims(dims: [usize; 3]) -> [usize; 3] {
+    dims.map(|n| (n / 2).max(1))
+}
+
 impl Volume {
     /// Validates the grid (dims ≥ 1, sample count, finite positive spacing, finite samples)
     /// and computes the value range.

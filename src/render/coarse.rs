@@ -1,0 +1,171 @@
+//! The volumes' half-resolution level (`quality.volume_level = 1`): each texel the box-filtered
+//! mean of the voxels it covers, for coarse renders (the viewer's first levels) whose planes
+//! and pixels are too far apart to resolve the full volume. On a CPU driver every trilinear
+//! fetch there lands on memory no neighbouring sample touched; an eighth of the texels keeps
+//! the fetches of neighbouring pixels and planes close.
+//!
+//! The level is the second mip level of the volume images (Vulkan's extent: ⌊n/2⌋ per axis, at
+//! least 1), sampled through a sampler clamped to it, so the passes read it unchanged.
+
+use rayon::prelude::*;
+
+/// A texel's channels as floats and back (rounded and saturated to the format).
+pub trait Channels: Copy + Send + Sync {
+    const N: usize;
+    fn get(&self) -> [f32; 4];
+    fn put(v: [f32; 4]) -> Self;
+}
+
+impl Channels for u16 {
+    const N: usize = 1;
+    fn get(&self) -> [f32; 4] {
+        [*self as f32, 0.0, 0.0, 0.0]
+    }
+    fn put(v: [f32; 4]) -> Self {
+        v[0].round().clamp(0.0, u16::MAX as f32) as u16
+    }
+}
+
+impl Channels for [i16; 4] {
+    const N: usize = 4;
+    fn get(&self) -> [f32; 4] {
+        self.map(|c| c as f32)
+    }
+    fn put(v: [f32; 4]) -> Self {
+        // SNORM: −32768 and −32767 both read as −1.
+        v.map(|c| c.round().clamp(-32767.0, 32767.0) as i16)
+    }
+}
+
+impl Channels for [half::f16; 4] {
+    const N: usize = 4;
+    fn get(&self) -> [f32; 4] {
+        self.map(|c| c.to_f32())
+    }
+    fn put(v: [f32; 4]) -> Self {
+        v.map(half::f16::from_f32)
+    }
+}
+
+pub use crate::volume::half_level_dims as half_dims;
+
+/// Per coarse texel along an axis of `n` voxels: the voxels it covers and their weights
+/// (summing to 1). Texel j of m spans voxels [j·n/m, (j+1)·n/m) in edge coordinates, so that
+/// normalised texture coordinates address the same place at both levels; where n is odd a
+/// texel covers two voxels and part of a third.
+fn axis_weights(n: usize) -> Vec<Vec<(usize, f32)>> {
+    let m = (n / 2).max(1);
+    let width = n as f64 / m as f64;
+    (0..m)
+        .map(|j| {
+            let (lo, hi) = (j as f64 * width, (j + 1) as f64 * width);
+            (lo.floor() as usize..(hi.ceil() as usize).min(n))
+                .filter_map(|i| {
+                    let overlap = hi.min(i as f64 + 1.0) - lo.max(i as f64);
+                    (overlap > 1e-9).then_some((i, (overlap / width) as f32))
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// The half-resolution level of `texels` (x fastest) of a `dims` volume: each coarse texel the
+/// mean of the voxels it covers, weighted by how much of each it covers.
+pub fn half_level<T: Channels>(texels: &[T], dims: [usize; 3]) -> Vec<T> {
+    let [nx, ny, nz] = dims;
+    assert_eq!(texels.len(), nx * ny * nz, "texels of a {nx}×{ny}×{nz} volume");
+    let [wx, wy, wz] = dims.map(axis_weights);
+    let [mx, my, _] = half_dims(dims);
+    let mut out = vec![T::put([0.0; 4]); mx * my * wz.len()];
+    out.par_chunks_mut(mx * my).zip(&wz).for_each(|(slice, zs)| {
+        for (yj, ys) in wy.iter().enumerate() {
+            for (xj, xs) in wx.iter().enumerate() {
+                let mut sum = [0.0f32; 4];
+                for &(z, fz) in zs {
+                    for &(y, fy) in ys {
+                        let row = (z * ny + y) * nx;
+                        for &(x, fx) in xs {
+                            let w = fz * fy * fx;
+                            let v = texels[row + x].get();
+                            for c in 0..T::N {
+                                sum[c] += w * v[c];
+                            }
+                        }
+                    }
+                }
+                slice[yj * mx + xj] = T::put(sum);
+            }
+        }
+    });
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn each_coarse_texel_weighs_what_it_covers_of_every_voxel() {
+        for n in [1usize, 2, 3, 7, 8, 108, 255] {
+            let w = axis_weights(n);
+            assert_eq!(w.len(), (n / 2).max(1));
+            // Every voxel is covered exactly once over all coarse texels: each texel's weights
+            // sum to 1 and, times the texel's width n/m, to the voxels it spans.
+            let mut coverage = vec![0.0f64; n];
+            for texel in &w {
+                let total: f32 = texel.iter().map(|(_, f)| f).sum();
+                assert!((total - 1.0).abs() < 1e-6, "n {n}: weights sum to {total}");
+                for &(i, f) in texel {
+                    coverage[i] += f as f64 * n as f64 / w.len() as f64;
+                }
+            }
+            for (i, c) in coverage.iter().enumerate() {
+                // f32 weights: 1e-6 relative.
+                assert!((c - 1.0).abs() < 1e-5, "n {n}: voxel {i} covered {c} times");
+            }
+        }
+    }
+
+    #[test]
+    fn a_linear_ramp_keeps_its_values_at_the_coarse_texel_centres() {
+        // The box filter of a linear function is its value at the box's centre, and the coarse
+        // texel j's centre lies at (j + ½)·n/m − ½ in voxel-centre coordinates. (Where n is
+        // odd, the voxel cut by a box's edge counts with its value at its own centre, which
+        // moves the mean by at most 0.05 voxel: even sides here.)
+        let dims = [8usize, 6, 4];
+        let f = |x: f32, y: f32, z: f32| 1000.0 + 300.0 * x + 70.0 * y + 1100.0 * z;
+        let mut texels = Vec::new();
+        for z in 0..dims[2] {
+            for y in 0..dims[1] {
+                for x in 0..dims[0] {
+                    texels.push(f(x as f32, y as f32, z as f32).round() as u16);
+                }
+            }
+        }
+        let coarse = half_level(&texels, dims);
+        let m = half_dims(dims);
+        assert_eq!(coarse.len(), m.iter().product::<usize>());
+        let centre = |j: usize, a: usize| (j as f32 + 0.5) * dims[a] as f32 / m[a] as f32 - 0.5;
+        for z in 0..m[2] {
+            for y in 0..m[1] {
+                for x in 0..m[0] {
+                    let want = f(centre(x, 0), centre(y, 1), centre(z, 2));
+                    let got = coarse[(z * m[1] + y) * m[0] + x] as f32;
+                    // The rounding of the input and the output to integers: at most 1.
+                    assert!((got - want).abs() <= 1.0, "({x}, {y}, {z}): {got} against {want}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn vector_texels_are_averaged_per_channel_and_saturate_to_their_format() {
+        let dims = [2usize, 2, 2];
+        let snorm: Vec<[i16; 4]> = (0..8).map(|i| [32767, -32767, i * 1000, 0]).collect();
+        assert_eq!(half_level(&snorm, dims), vec![[32767, -32767, 3500, 0]]);
+        let halves: Vec<[half::f16; 4]> = (0..8)
+            .map(|i| [1.0, i as f32, -2.0, 0.25].map(half::f16::from_f32))
+            .collect();
+        assert_eq!(half_level(&halves, dims)[0].map(|c| c.to_f32()), [1.0, 3.5, -2.0, 0.25]);
+    }
+}
