@@ -447,9 +447,6 @@ pub struct SamplerDesc {
     pub mipmaps: bool,
     /// Address mode per axis (u, v, w).
     pub address: [vk::SamplerAddressMode; 3],
-    /// The mip level every lookup reads (its level of detail clamped there), or with
-    /// `mipmaps` the finest one read. An image with fewer levels reads its last.
-    pub level: u32,
 }
 
 pub struct Sampler {
@@ -476,12 +473,8 @@ impl Sampler {
             .address_mode_v(desc.address[1])
             .address_mode_w(desc.address[2])
             .border_color(vk::BorderColor::FLOAT_TRANSPARENT_BLACK)
-            .min_lod(desc.level as f32)
-            .max_lod(if desc.mipmaps {
-                vk::LOD_CLAMP_NONE
-            } else {
-                desc.level as f32
-            });
+            .min_lod(0.0)
+            .max_lod(if desc.mipmaps { vk::LOD_CLAMP_NONE } else { 0.0 });
         // SAFETY: valid create info; destroyed in Drop.
         let raw = unsafe { ctx.device.create_sampler(&info, None) }.map_err(vk_err("vkCreateSampler"))?;
         ctx.set_name(raw, &desc.label);

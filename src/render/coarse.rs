@@ -4,8 +4,8 @@
 //! fetch there lands on memory no neighbouring sample touched; an eighth of the texels keeps
 //! the fetches of neighbouring pixels and planes close.
 //!
-//! The level is the second mip level of the volume images (Vulkan's extent: ⌊n/2⌋ per axis, at
-//! least 1), sampled through a sampler clamped to it, so the passes read it unchanged.
+//! The level is an image of its own beside each volume image (a mip level's extent: ⌊n/2⌋ per
+//! axis, at least 1), bound in its place, so the passes read it unchanged.
 
 use rayon::prelude::*;
 

@@ -749,20 +749,14 @@ pub(super) fn run(
     for p in &pipelines {
         let mut set = DescriptorSet::new(ctx, p, &p.label)?;
         let t = &cached.textures;
+        let [volume_tex, gradient_tex, orientation_tex] = t.sampled(coarse);
         let mut writes = vec![
             ("params", Resource::Buffer(&params)),
-            ("volume_tex", Resource::Image(&t.volume)),
+            ("volume_tex", Resource::Image(volume_tex)),
             ("linear_clamp", Resource::Sampler(&t.linear_clamp)),
-            (
-                "volume_sampler",
-                Resource::Sampler(if coarse {
-                    &t.volume_sampler_coarse
-                } else {
-                    &t.volume_sampler
-                }),
-            ),
-            ("gradient_tex", Resource::Image(&t.gradient)),
-            ("orientation_tex", Resource::Image(&t.orientation)),
+            ("volume_sampler", Resource::Sampler(&t.volume_sampler)),
+            ("gradient_tex", Resource::Image(gradient_tex)),
+            ("orientation_tex", Resource::Image(orientation_tex)),
             ("particle_table", Resource::Image(&t.particle_table)),
             ("medium_table", Resource::Image(&t.medium_table)),
             ("env_tex", Resource::Image(&t.env)),

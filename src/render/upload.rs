@@ -23,14 +23,15 @@ pub struct SceneTextures {
     pub gradient: Image,
     /// The value's gradient per voxel, for the view's layers (`layers.rs`).
     pub orientation: Image,
+    /// The volume, gradient and orientation volumes at half resolution (`coarse.rs`), where
+    /// asked for and each is more than a placeholder texel.
+    pub half: [Option<Image>; 3],
     pub particle_table: Image,
     pub medium_table: Image,
     pub env: Image,
     pub env_levels: u32,
     pub linear_clamp: Sampler,
     pub volume_sampler: Sampler,
-    /// The volumes' half-resolution level (`quality.volume_level = 1`).
-    pub volume_sampler_coarse: Sampler,
     pub env_sampler: Sampler,
     /// Which 8³ bricks absorb or show, or with refraction change η (`bricks.rs`), one u32
     /// each.
@@ -182,7 +183,10 @@ struct Staged {
 
 impl Staged {
     /// Creates a sampled 3D image of `extent` texels in `format` and stages `texels` for it;
-    /// with `coarse`, its half-resolution level too (`coarse.rs`), as a second mip level.
+    /// with `coarse`, a second image of its half-resolution level (`coarse.rs`) after it.
+    /// Whether it made the second. An image of its own rather than a mip level: a CPU driver
+    /// compiles a variant of each shader per sampler state and per image's level count, and
+    /// the viewer's levels would then need two.
     fn volume<T: super::coarse::Channels + bytemuck::Pod>(
         &mut self,
         ctx: &Arc<Context>,
@@ -191,20 +195,30 @@ impl Staged {
         extent: [u32; 3],
         texels: Vec<T>,
         coarse: bool,
-    ) -> Result<(), GpuError> {
+    ) -> Result<bool, GpuError> {
         let dims = extent.map(|n| n as usize);
         // A placeholder texel has no finer level to filter.
         let half = (coarse && dims.iter().product::<usize>() > 1).then(|| super::coarse::half_level(&texels, dims));
-        let levels = if half.is_some() { 2 } else { 1 };
-        let image = Image::new(ctx, ImageDesc::sampled(label, format, extent, true, levels))?;
-        let mut staged = vec![(self.staging.push_owned(Box::new(texels)), extent)];
-        if let Some(half) = half {
-            let half_extent = super::coarse::half_dims(dims).map(|n| n as u32);
-            staged.push((self.staging.push_owned(Box::new(half)), half_extent));
-        }
-        self.uploads.push((self.images.len(), staged));
+        let image = Image::new(ctx, ImageDesc::sampled(label, format, extent, true, 1))?;
+        self.uploads.push((
+            self.images.len(),
+            vec![(self.staging.push_owned(Box::new(texels)), extent)],
+        ));
         self.images.push(image);
-        Ok(())
+        let Some(half) = half else {
+            return Ok(false);
+        };
+        let half_extent = super::coarse::half_dims(dims).map(|n| n as u32);
+        let image = Image::new(
+            ctx,
+            ImageDesc::sampled(&format!("{label} at half resolution"), format, half_extent, true, 1),
+        )?;
+        self.uploads.push((
+            self.images.len(),
+            vec![(self.staging.push_owned(Box::new(half)), half_extent)],
+        ));
+        self.images.push(image);
+        Ok(true)
     }
 }
 
@@ -278,8 +292,9 @@ impl SceneTextures {
             ([1, 1, 1], vec![[0i16; 4]])
         };
         // Each volume's texels go to the staging buffer as they are, once all are made.
-        staged.volume(ctx, "volume", Format::R16_UNORM, vol_extent, samples, coarse)?;
-        staged.volume(
+        let mut made_half = [false; 3];
+        made_half[0] = staged.volume(ctx, "volume", Format::R16_UNORM, vol_extent, samples, coarse)?;
+        made_half[1] = staged.volume(
             ctx,
             "gradient volume",
             Format::R16G16B16A16_SFLOAT,
@@ -287,7 +302,7 @@ impl SceneTextures {
             gradient_texels,
             coarse,
         )?;
-        staged.volume(
+        made_half[2] = staged.volume(
             ctx,
             "orientation volume",
             Format::R16G16B16A16_SNORM,
@@ -352,7 +367,6 @@ impl SceneTextures {
                 linear: true,
                 mipmaps: false,
                 address: [A::CLAMP_TO_EDGE; 3],
-                level: 0,
             },
         )?;
         let volume_sampler = Sampler::new(
@@ -362,19 +376,6 @@ impl SceneTextures {
                 linear: true,
                 mipmaps: false,
                 address: [A::CLAMP_TO_BORDER; 3],
-                level: 0,
-            },
-        )?;
-        // The same at the half-resolution level, where the volumes have one (a volume without
-        // it reads its only level through this sampler too).
-        let volume_sampler_coarse = Sampler::new(
-            ctx,
-            &SamplerDesc {
-                label: "volume at half resolution (linear, zero outside)".into(),
-                linear: true,
-                mipmaps: false,
-                address: [A::CLAMP_TO_BORDER; 3],
-                level: 1,
             },
         )?;
         let env_sampler = Sampler::new(
@@ -384,14 +385,19 @@ impl SceneTextures {
                 linear: true,
                 mipmaps: true,
                 address: [A::REPEAT, A::CLAMP_TO_EDGE, A::CLAMP_TO_EDGE],
-                level: 0,
             },
         )?;
 
         let mut it = images.into_iter();
-        let volume = it.next().ok_or_else(missing)?;
-        let gradient = it.next().ok_or_else(missing)?;
-        let orientation = it.next().ok_or_else(missing)?;
+        let mut half = [None, None, None];
+        let mut volumes = Vec::new();
+        for (made, half) in made_half.iter().zip(&mut half) {
+            volumes.push(it.next().ok_or_else(missing)?);
+            if *made {
+                *half = Some(it.next().ok_or_else(missing)?);
+            }
+        }
+        let [volume, gradient, orientation]: [Image; 3] = volumes.try_into().map_err(|_| missing())?;
         let particle_table = it.next().ok_or_else(missing)?;
         let medium_table = it.next().ok_or_else(missing)?;
         let env = it.next().ok_or_else(missing)?;
@@ -406,13 +412,13 @@ impl SceneTextures {
             volume,
             gradient,
             orientation,
+            half,
             particle_table,
             medium_table,
             env,
             env_levels: env_levels.len() as u32,
             linear_clamp,
             volume_sampler,
-            volume_sampler_coarse,
             env_sampler,
             bricks,
             brick_dims: occupancy.dims,
@@ -493,14 +499,28 @@ impl SceneTextures {
 
     /// The images in the order [`PendingUpload`] indexes them (the order of creation).
     fn images(&self) -> Vec<&Image> {
-        vec![
-            &self.volume,
-            &self.gradient,
-            &self.orientation,
-            &self.particle_table,
-            &self.medium_table,
-            &self.env,
-        ]
+        let [h0, h1, h2] = &self.half;
+        [Some(&self.volume), h0.as_ref(), Some(&self.gradient), h1.as_ref()]
+            .into_iter()
+            .chain([Some(&self.orientation), h2.as_ref()])
+            .chain([Some(&self.particle_table), Some(&self.medium_table), Some(&self.env)])
+            .flatten()
+            .collect()
+    }
+
+    /// The volume, gradient and orientation volumes the passes sample: at half resolution
+    /// with `coarse` where there is one.
+    pub fn sampled(&self, coarse: bool) -> [&Image; 3] {
+        let full = [&self.volume, &self.gradient, &self.orientation];
+        let mut out = full;
+        if coarse {
+            for (o, h) in out.iter_mut().zip(&self.half) {
+                if let Some(h) = h {
+                    *o = h;
+                }
+            }
+        }
+        out
     }
 
     /// Records the copy of the staged contents into the textures. The recorder keeps the
