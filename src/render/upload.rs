@@ -184,9 +184,10 @@ struct Staged {
 impl Staged {
     /// Creates a sampled 3D image of `extent` texels in `format` and stages `texels` for it;
     /// with `coarse`, a second image of its half-resolution level (`coarse.rs`) after it.
-    /// Whether it made the second. An image of its own rather than a mip level: a CPU driver
-    /// compiles a variant of each shader per sampler state and per image's level count, and
-    /// the viewer's levels would then need two.
+    /// Whether it made the second. An image of its own rather than a mip level read through a
+    /// sampler clamped to it: llvmpipe compiles a variant of each shader per sampler state, and
+    /// with two the viewer's preview (the first level at full resolution after the coarse
+    /// ones) compiled them all again (2.1 s instead of 0.5 s on the ball-lens scene).
     fn volume<T: super::coarse::Channels + bytemuck::Pod>(
         &mut self,
         ctx: &Arc<Context>,
@@ -511,8 +512,7 @@ impl SceneTextures {
     /// The volume, gradient and orientation volumes the passes sample: at half resolution
     /// with `coarse` where there is one.
     pub fn sampled(&self, coarse: bool) -> [&Image; 3] {
-        let full = [&self.volume, &self.gradient, &self.orientation];
-        let mut out = full;
+        let mut out = [&self.volume, &self.gradient, &self.orientation];
         if coarse {
             for (o, h) in out.iter_mut().zip(&self.half) {
                 if let Some(h) = h {
