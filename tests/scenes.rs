@@ -311,3 +311,30 @@ fn view_passes_over_several_planes_render_what_one_plane_per_pass_does() {
         }
     }
 }
+
+#[test]
+fn timings_say_when_the_volume_is_sampled_at_half_resolution() {
+    let dir = std::env::temp_dir().join(format!("caustica-volume-level-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    // The built-in ball-lens volume at resolution 16 is 16×10×16 voxels; its half level has
+    // ⌊n/2⌋ per axis.
+    let line = "volume sampled at half resolution: 8×5×8 of 16×10×16 voxels";
+    for (level, said) in [(1, true), (0, false)] {
+        let scene = format!(
+            "transfer = {{ opacity = [[0.0, 0.0], [1.0, 0.5]] }}\n\n[volume]\nkind = \"builtin\"\n\
+             name = \"ball-lens\"\nresolution = 16\n\n[quality]\nvolume_level = {level}\n"
+        );
+        std::fs::write(dir.join("scene.toml"), scene).unwrap();
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_caustica"))
+            .args(["render", "scene.toml", "--size", "16x16", "-o", "x.png", "--timings"])
+            .current_dir(&dir)
+            .env("CAUSTICA_VALIDATION", "require")
+            .output()
+            .expect("run the caustica binary");
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert!(out.status.success(), "{stdout}{}", String::from_utf8_lossy(&out.stderr));
+        assert_eq!(stdout.contains(line), said, "volume_level {level}:\n{stdout}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

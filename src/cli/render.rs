@@ -138,6 +138,11 @@ pub fn render(args: &RenderArgs) -> Result<()> {
             s.rect[0],
             s.rect[1],
         );
+        if prepared.scene.quality.volume_level > 0 {
+            let [x, y, z] = crate::volume::half_level_dims(prepared.volume.dims);
+            let [a, b, c] = prepared.volume.dims;
+            println!("volume sampled at half resolution: {x}×{y}×{z} of {a}×{b}×{c} voxels (quality.volume_level 1)");
+        }
         if args.pass_timings {
             let [light, view, listing, finish] = s.pass_ms;
             println!(
