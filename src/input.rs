@@ -301,14 +301,22 @@ fn select_time(scene: &mut Scene, t: f32) -> Result<String, InputError> {
     }
 }
 
-/// Downsamples `prepared` to the limits of `ctx`'s device (see [`PreparedScene::fit_to_device`]).
-/// Volume textures may use half the device-local memory; the rest is state and tables.
+/// Downsamples `prepared` to the limits of `ctx`'s device (see
+/// [`PreparedScene::fit_to_device_keeping`]; `keep_half_level` for renders that keep the
+/// volumes' half-resolution level, the viewer's). Volume textures may use half the
+/// device-local memory; the rest is state and tables.
 pub fn fit_to_device(
     prepared: &mut PreparedScene,
     ctx: &Context,
     allow: bool,
+    keep_half_level: bool,
 ) -> Result<Option<[usize; 3]>, PrepareError> {
-    prepared.fit_to_device(ctx.info.max_image_3d, ctx.device_local_bytes() / 2, allow)
+    prepared.fit_to_device_keeping(
+        ctx.info.max_image_3d,
+        ctx.device_local_bytes() / 2,
+        allow,
+        keep_half_level,
+    )
 }
 
 #[cfg(test)]

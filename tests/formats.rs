@@ -165,6 +165,35 @@ fn the_orientation_volume_is_kept_only_where_it_fits() {
     assert!(p.orientation_volume);
 }
 
+/// The volumes' half-resolution level (an image of ⌊n/2⌋ per axis beside each volume image)
+/// counts in the byte budget where it is made: where the scene reads it
+/// (`quality.volume_level`) or the renders keep it (the viewer).
+#[test]
+fn the_byte_budget_counts_the_half_resolution_level() {
+    let clear = plain_tf(vec![[0.0, 0.0], [1.0, 0.5]], vec![[0.0, 1.0, 1.0, 1.0]]);
+    let (full, half) = (16 * 16 * 16, 8 * 8 * 8);
+    let mut coarse = head_on_scene(&clear);
+    coarse.quality.volume_level = 1;
+    let mut p = prepared(coarse, common::sphere(16, 0.3, 1.0), clear.clone());
+    // 2 + 8 bytes per voxel of the full volumes and of their half level fit: all kept.
+    assert_eq!(p.fit_to_device(1024, 10 * (full + half), false).unwrap(), None);
+    assert!(p.orientation_volume);
+    // The full volumes' bytes alone, which fit without the half level: the orientation volume
+    // is dropped for it.
+    assert_eq!(p.fit_to_device(1024, 10 * full, false).unwrap(), None);
+    assert!(!p.orientation_volume);
+    let mut plain = prepared(head_on_scene(&clear), common::sphere(16, 0.3, 1.0), clear.clone());
+    assert_eq!(plain.fit_to_device(1024, 10 * full, false).unwrap(), None);
+    assert!(plain.orientation_volume, "without the half level they fit");
+    assert_eq!(plain.fit_to_device_keeping(1024, 10 * full, false, true).unwrap(), None);
+    assert!(!plain.orientation_volume, "kept for the viewer, the half level counts");
+    // The 16-bit volume alone fits in 2·16³ bytes, not with its half level: downsampled, to
+    // 2·(n³ + ⌊n/2⌋³) ≤ 2·16³, 15³ (2·(3375 + 343) = 7436 ≤ 8192).
+    let err = p.fit_to_device(1024, 2 * full, false).unwrap_err().to_string();
+    assert!(err.contains("exceeds"), "{err}");
+    assert_eq!(p.fit_to_device(1024, 2 * full, true).unwrap(), Some([15, 15, 15]));
+}
+
 #[test]
 fn time_series_scene_loads_the_selected_frame() {
     let dir = std::env::temp_dir().join(format!("caustica-formats-series-{}", std::process::id()));

@@ -100,7 +100,7 @@ impl SeriesFrames {
         };
         prepared.volume = volume;
         prepared.volume_info = info;
-        fit_to_device(prepared, renderer.context(), allow_downsample)?;
+        fit_to_device(prepared, renderer.context(), allow_downsample, false)?;
         self.shown = Some(key);
         Ok(())
     }

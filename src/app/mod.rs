@@ -140,7 +140,7 @@ pub fn run(args: &ViewArgs) -> Result<(), ViewError> {
     }
     let ctx = Context::new(&ContextDesc::from_env(DeviceSelector::parse(&args.device)))?;
     let allow_downsample = !args.input.no_downsample;
-    fit_to_device(&mut prepared, &ctx, allow_downsample)?;
+    fit_to_device(&mut prepared, &ctx, allow_downsample, true)?;
     let histogram = panel::histogram(&prepared.volume.data, prepared.window());
     let mut state = panel::ViewState::new(prepared.scene.clone(), histogram, &presets_dir())?;
     state.anatomy = prepared

@@ -173,7 +173,7 @@ fn set_scene(
         );
         let loaded = prepared
             .load_frame(frame)
-            .and_then(|()| crate::input::fit_to_device(prepared, renderer.context(), allow_downsample));
+            .and_then(|()| crate::input::fit_to_device(prepared, renderer.context(), allow_downsample, true));
         if let Err(e) = loaded {
             // Back to the frame that was there: the next request for this one tries again.
             (prepared.scene.volume, prepared.volume, prepared.volume_info) = before;

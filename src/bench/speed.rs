@@ -355,7 +355,7 @@ pub fn run(ctx: Arc<Context>, plan: &SpeedPlan, out: &Path, progress: bool) -> R
     let mut edits = Vec::new();
     for s in &plan.scenes {
         let mut prepared = PreparedScene::load(&s.scene)?;
-        crate::input::fit_to_device(&mut prepared, &ctx, true)?;
+        crate::input::fit_to_device(&mut prepared, &ctx, true, false)?;
         let smallest = sizes.iter().map(|s| s.0).min().unwrap_or(1);
         renderer.render(&prepared, &RenderRequest::new(smallest, smallest))?;
         for &(size, tiny) in &sizes {

@@ -340,7 +340,7 @@ pub fn animate(args: &AnimateArgs) -> Result<(), AnimateError> {
         None => PreparedScene::load(&animation.scene)?,
     };
     let allow = !args.input.no_downsample;
-    fit_to_device(&mut prepared, &ctx, allow)?;
+    fit_to_device(&mut prepared, &ctx, allow, false)?;
     let mut renderer = Renderer::new(ctx)?;
     let s = render_frames(
         &mut renderer,

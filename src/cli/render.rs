@@ -85,7 +85,7 @@ pub fn render(args: &RenderArgs) -> Result<()> {
         eprintln!("{note}");
     }
     let ctx = Context::new(&ContextDesc::from_env(DeviceSelector::parse(&args.device)))?;
-    fit_to_device(&mut prepared, &ctx, !args.input.no_downsample)?;
+    fit_to_device(&mut prepared, &ctx, !args.input.no_downsample, false)?;
     let mut renderer = Renderer::new(ctx.clone())?;
     let mut req = RenderRequest::new(args.size.0, args.size.1);
     req.progress = true;

@@ -140,18 +140,42 @@ impl PreparedScene {
     /// Downsamples the volumes (and warns) when they exceed `max_dim` voxels along an axis or
     /// `max_bytes` of volume texture memory; with `allow` false that is an error instead.
     /// Returns the new dims when the volume was downsampled. The orientation volume is kept
-    /// only where it fits as well; it never makes the volume smaller.
+    /// only where it fits as well; it never makes the volume smaller. The volumes'
+    /// half-resolution level counts where the scene reads it (`quality.volume_level`).
     pub fn fit_to_device(
         &mut self,
         max_dim: u32,
         max_bytes: u64,
         allow: bool,
     ) -> Result<Option<[usize; 3]>, PrepareError> {
+        self.fit_to_device_keeping(max_dim, max_bytes, allow, false)
+    }
+
+    /// [`PreparedScene::fit_to_device`] for renders that keep the volumes' half-resolution
+    /// level even where this scene does not read it (`keep_half_level`: the viewer, whose
+    /// coarse levels do; `RenderRequest::keep_coarse_volume`).
+    pub fn fit_to_device_keeping(
+        &mut self,
+        max_dim: u32,
+        max_bytes: u64,
+        allow: bool,
+        keep_half_level: bool,
+    ) -> Result<Option<[usize; 3]>, PrepareError> {
         // What the device holds: the volume's 16-bit samples and, with refraction, an rgba16f
         // gradient volume (8 bytes per voxel, `render::gradient`) of the η source, the η
-        // volume or else the volume itself; an η volume's own samples are not uploaded.
+        // volume or else the volume itself; an η volume's own samples are not uploaded. With
+        // the half-resolution level, each has an image of ⌊n/2⌋ per axis beside it.
         let refracts = self.scene.quality.refracts(&self.tf);
-        let voxels = |d: [usize; 3]| d.iter().map(|&n| n as u64).product::<u64>();
+        let half = keep_half_level || self.scene.quality.volume_level > 0;
+        let count = |d: [usize; 3]| d.iter().map(|&n| n as u64).product::<u64>();
+        let voxels = |d: [usize; 3]| {
+            count(d)
+                + if half {
+                    count(crate::volume::half_level_dims(d))
+                } else {
+                    0
+                }
+        };
         let gradient_dims = refracts.then(|| self.eta_volume.as_ref().map_or(self.volume.dims, |e| e.dims));
         let bytes = 2 * voxels(self.volume.dims) + gradient_dims.map_or(0, |d| 8 * voxels(d));
         let largest = self
@@ -174,9 +198,11 @@ impl PreparedScene {
             }
             return Ok(None);
         }
-        // Downsampled, the η volume takes the volume's dims: 2 + 8 bytes per voxel then.
+        // Downsampled, the η volume takes the volume's dims: 2 + 8 bytes per voxel then, and
+        // with the half level an eighth more (⌊n/2⌋³ ≤ n³/8 where no axis is a single voxel).
         let per_voxel = if refracts { 10 } else { 2 };
-        let max_voxels = (max_bytes / per_voxel).min(usize::MAX as u64) as usize;
+        let per_voxel_levels = if half { per_voxel * 9 } else { per_voxel * 8 };
+        let max_voxels = (max_bytes.saturating_mul(8) / per_voxel_levels).min(usize::MAX as u64) as usize;
         let dims = fitting_dims(self.volume.dims, max_dim as usize, max_voxels).unwrap_or(self.volume.dims);
         let what = format!(
             "the volume {} exceeds the device's limits ({max_dim} texels per axis, {} MiB for volume textures)",
