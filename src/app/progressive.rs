@@ -342,6 +342,9 @@ mod tests {
         // The interactive level renders 160×120 pixels' worth in any viewport, the draft three
         // times as many, at most a quarter and a half of the viewport per axis.
         assert_eq!(LEVELS[0].size(1024, 768), (160, 120));
+        // Rounded to whole pixels, the size may exceed the pixels asked for by about a row or
+        // a column (152 or 127 pixels here: bounds of 400 and, at three times the pixels, 700)
+        // and change the aspect by about a pixel in 127 (0.01).
         let (w, h) = LEVELS[0].size(644, 768);
         assert!(
             w * h >= INTERACTIVE_PIXELS && w * h < INTERACTIVE_PIXELS + 400,
