@@ -7,14 +7,9 @@
 //! The level is an image of its own beside each volume image (a mip level's extent: ⌊n/2⌋ per
 //! axis, at least 1), bound in its place, so the passes read it unchanged.
 
-use rayon::prelude::*;
-
-/// A texel's channels as floats and back (rounded and saturated to the format).
-pub trait Channels: Copy + Send + Sync {
-    const N: usize;
-    fn get(&self) -> [f32; 4];
-    fn put(v: [f32; 4]) -> Self;
-}
+pub use crate::volume::half_level_dims as half_dims;
+use crate::volume::resample::resample_texels;
+pub use crate::volume::resample::Channels;
 
 impl Channels for u16 {
     const N: usize = 1;
@@ -47,57 +42,20 @@ impl Channels for [half::f16; 4] {
     }
 }
 
-pub use crate::volume::half_level_dims as half_dims;
-
-/// Per coarse texel along an axis of `n` voxels: the voxels it covers and their weights
-/// (summing to 1). Texel j of m spans voxels [j·n/m, (j+1)·n/m) in edge coordinates, so that
-/// normalised texture coordinates address the same place at both levels; where n is odd a
-/// texel covers two voxels and part of a third.
-fn axis_weights(n: usize) -> Vec<Vec<(usize, f32)>> {
-    let m = (n / 2).max(1);
-    let width = n as f64 / m as f64;
-    (0..m)
-        .map(|j| {
-            let (lo, hi) = (j as f64 * width, (j + 1) as f64 * width);
-            (lo.floor() as usize..(hi.ceil() as usize).min(n))
-                .filter_map(|i| {
-                    let overlap = hi.min(i as f64 + 1.0) - lo.max(i as f64);
-                    (overlap > 1e-9).then_some((i, (overlap / width) as f32))
-                })
-                .collect()
-        })
-        .collect()
+/// The half-resolution level of `texels` (x fastest) of a `dims` volume: each coarse texel the
+/// mean of the voxels it covers, weighted by how much of each it covers (the box filter of
+/// `volume::resample`, which downsamples volumes to fit a device). Texel j of m = ⌊n/2⌋ spans
+/// voxels [j·n/m, (j+1)·n/m) in edge coordinates, so that normalised texture coordinates
+/// address the same place at both levels; where n is odd a texel covers two voxels and part
+/// of a third.
+pub fn half_level<T: Channels>(texels: &[T], dims: [usize; 3]) -> Vec<T> {
+    resample_texels(texels, dims, half_dims(dims))
 }
 
-/// The half-resolution level of `texels` (x fastest) of a `dims` volume: each coarse texel the
-/// mean of the voxels it covers, weighted by how much of each it covers.
-pub fn half_level<T: Channels>(texels: &[T], dims: [usize; 3]) -> Vec<T> {
-    let [nx, ny, nz] = dims;
-    assert_eq!(texels.len(), nx * ny * nz, "texels of a {nx}×{ny}×{nz} volume");
-    let [wx, wy, wz] = dims.map(axis_weights);
-    let [mx, my, _] = half_dims(dims);
-    let mut out = vec![T::put([0.0; 4]); mx * my * wz.len()];
-    out.par_chunks_mut(mx * my).zip(&wz).for_each(|(slice, zs)| {
-        for (yj, ys) in wy.iter().enumerate() {
-            for (xj, xs) in wx.iter().enumerate() {
-                let mut sum = [0.0f32; 4];
-                for &(z, fz) in zs {
-                    for &(y, fy) in ys {
-                        let row = (z * ny + y) * nx;
-                        for &(x, fx) in xs {
-                            let w = fz * fy * fx;
-                            let v = texels[row + x].get();
-                            for c in 0..T::N {
-                                sum[c] += w * v[c];
-                            }
-                        }
-                    }
-                }
-                slice[yj * mx + xj] = T::put(sum);
-            }
-        }
-    });
-    out
+/// The coarse texels' weights along an axis of `n` voxels.
+#[cfg(test)]
+fn half_axis_weights(n: usize) -> Vec<Vec<(usize, f32)>> {
+    crate::volume::resample::axis_weights(n, (n / 2).max(1))
 }
 
 #[cfg(test)]
@@ -107,7 +65,7 @@ mod tests {
     #[test]
     fn each_coarse_texel_weighs_what_it_covers_of_every_voxel() {
         for n in [1usize, 2, 3, 7, 8, 108, 255] {
-            let w = axis_weights(n);
+            let w = half_axis_weights(n);
             assert_eq!(w.len(), (n / 2).max(1));
             // Every voxel is covered exactly once over all coarse texels: each texel's weights
             // sum to 1 and, times the texel's width n/m, to the voxels it spans.

@@ -2,53 +2,102 @@
 //! main volume's grid, and downsampling to fit a device's 3D-texture limits.
 
 use super::{checked_voxel_count, Volume, VolumeError};
+use rayon::prelude::*;
 
-/// Most sub-samples per axis averaged for one target voxel when downsampling.
-const MAX_FOOTPRINT_SAMPLES: usize = 4;
+/// A texel's channels as floats and back (rounded and saturated to the format): what
+/// [`resample_texels`] averages, for the volume's f32 samples and the device's texel formats.
+pub trait Channels: Copy + Send + Sync {
+    const N: usize;
+    fn get(&self) -> [f32; 4];
+    fn put(v: [f32; 4]) -> Self;
+}
+
+impl Channels for f32 {
+    const N: usize = 1;
+    fn get(&self) -> [f32; 4] {
+        [*self, 0.0, 0.0, 0.0]
+    }
+    fn put(v: [f32; 4]) -> Self {
+        v[0]
+    }
+}
+
+/// Per target voxel along an axis of `n` source voxels resampled onto `m` over the same
+/// extent: the source voxels it reads and their weights (summing to 1).
+///
+/// Downsampling (m < n) is the box filter: target voxel j spans [j·n/m, (j+1)·n/m) in edge
+/// coordinates, and each source voxel counts by the part of it covered, so a thin structure
+/// keeps its mean however far apart the targets are. Otherwise each target voxel interpolates
+/// linearly at its centre, (j + ½)·n/m − ½ in source voxel-centre coordinates, clamped to
+/// the outermost centres.
+pub fn axis_weights(n: usize, m: usize) -> Vec<Vec<(usize, f32)>> {
+    let width = n as f64 / m as f64;
+    (0..m)
+        .map(|j| {
+            if m < n {
+                let (lo, hi) = (j as f64 * width, (j + 1) as f64 * width);
+                return (lo.floor() as usize..(hi.ceil() as usize).min(n))
+                    .filter_map(|i| {
+                        let overlap = hi.min(i as f64 + 1.0) - lo.max(i as f64);
+                        (overlap > 1e-9).then_some((i, (overlap / width) as f32))
+                    })
+                    .collect();
+            }
+            let c = ((j as f64 + 0.5) * width - 0.5).clamp(0.0, (n - 1) as f64);
+            let i = (c.floor() as usize).min(n - 1);
+            let f = c - i as f64;
+            if f > 0.0 && i + 1 < n {
+                vec![(i, (1.0 - f) as f32), (i + 1, f as f32)]
+            } else {
+                vec![(i, 1.0)]
+            }
+        })
+        .collect()
+}
+
+/// `texels` (x fastest) of a `dims` volume resampled onto `to` over the same extent, with
+/// [`axis_weights`] per axis (a separable filter: box when downsampling, linear otherwise).
+pub fn resample_texels<T: Channels>(texels: &[T], dims: [usize; 3], to: [usize; 3]) -> Vec<T> {
+    let [nx, ny, nz] = dims;
+    assert_eq!(texels.len(), nx * ny * nz, "texels of a {nx}×{ny}×{nz} volume");
+    let [wx, wy, wz] = [0, 1, 2].map(|a| axis_weights(dims[a], to[a]));
+    let [mx, my, _] = to;
+    let mut out = vec![T::put([0.0; 4]); mx * my * wz.len()];
+    out.par_chunks_mut(mx * my).zip(&wz).for_each(|(slice, zs)| {
+        for (yj, ys) in wy.iter().enumerate() {
+            for (xj, xs) in wx.iter().enumerate() {
+                let mut sum = [0.0f32; 4];
+                for &(z, fz) in zs {
+                    for &(y, fy) in ys {
+                        let row = (z * ny + y) * nx;
+                        for &(x, fx) in xs {
+                            let w = fz * fy * fx;
+                            let v = texels[row + x].get();
+                            for c in 0..T::N {
+                                sum[c] += w * v[c];
+                            }
+                        }
+                    }
+                }
+                slice[yj * mx + xj] = T::put(sum);
+            }
+        }
+    });
+    out
+}
 
 /// Resamples `src` onto `dims` voxels spanning the same box; the spacing grows or shrinks so
-/// that the physical extent stays the same. Upsampling is trilinear; when downsampling, each
-/// target voxel averages trilinear samples spread over its footprint (up to 4 per axis), so
-/// thin structures fade instead of vanishing between sample points.
+/// that the physical extent stays the same. Per axis, downsampling averages the source voxels
+/// each target voxel covers (weighted by how much of each), so thin structures fade instead
+/// of vanishing between sample points; upsampling interpolates linearly ([`axis_weights`]).
 pub fn resample(src: &Volume, dims: [usize; 3]) -> Result<Volume, VolumeError> {
-    let count = checked_voxel_count(dims)?;
+    checked_voxel_count(dims)?;
     if dims == src.dims {
         return Ok(src.clone());
     }
     let extent = src.extent();
     let spacing = [0, 1, 2].map(|a| extent[a] / dims[a] as f32);
-    // Voxel centre i of the target lies at (i + 0.5) / n_target of the box, which is source
-    // voxel coordinate (i + 0.5) · n_source / n_target − 0.5.
-    let scale = [0, 1, 2].map(|a| src.dims[a] as f32 / dims[a] as f32);
-    let offsets: [Vec<f32>; 3] = [0, 1, 2].map(|a| {
-        if scale[a] <= 1.0 {
-            return vec![0.0];
-        }
-        let k = (scale[a].ceil() as usize).min(MAX_FOOTPRINT_SAMPLES);
-        (0..k).map(|j| ((j as f32 + 0.5) / k as f32 - 0.5) * scale[a]).collect()
-    });
-    let samples = (offsets[0].len() * offsets[1].len() * offsets[2].len()) as f32;
-    let coordinate = |a: usize, c: f32| c.clamp(0.0, (src.dims[a] - 1) as f32);
-    let centre = |a: usize, i: usize| (i as f32 + 0.5) * scale[a] - 0.5;
-    let mut data = Vec::with_capacity(count);
-    for z in 0..dims[2] {
-        for y in 0..dims[1] {
-            for x in 0..dims[0] {
-                let mut sum = 0.0f32;
-                for dz in &offsets[2] {
-                    let sz = coordinate(2, centre(2, z) + dz);
-                    for dy in &offsets[1] {
-                        let sy = coordinate(1, centre(1, y) + dy);
-                        for dx in &offsets[0] {
-                            sum += src.sample_trilinear([coordinate(0, centre(0, x) + dx), sy, sz]);
-                        }
-                    }
-                }
-                data.push(sum / samples);
-            }
-        }
-    }
-    Volume::new(dims, spacing, data)
+    Volume::new(dims, spacing, resample_texels(&src.data, src.dims, dims))
 }
 
 /// Dims no larger than `max_dim` per axis and `max_voxels` in total, keeping the aspect ratio;
@@ -98,6 +147,44 @@ mod tests {
         let down = resample(&src, [4, 1, 1]).unwrap();
         for x in 0..4 {
             assert!((down.get(x, 0, 0) - 0.25).abs() < 1e-6, "{:?}", down.data);
+        }
+    }
+
+    #[test]
+    fn box_weights_cover_every_source_voxel_once_at_any_ratio() {
+        for (n, m) in [(2usize, 1usize), (7, 3), (16, 4), (255, 100), (1024, 200), (5, 4)] {
+            let w = axis_weights(n, m);
+            assert_eq!(w.len(), m);
+            let mut coverage = vec![0.0f64; n];
+            for texel in &w {
+                let total: f64 = texel.iter().map(|&(_, f)| f as f64).sum();
+                // Up to ⌈n/m⌉ + 1 f32 weights, each rounded from f64: a few units of 2⁻²⁴
+                // each.
+                assert!((total - 1.0).abs() < 1e-6, "{n} → {m}: weights sum to {total}");
+                for &(i, f) in texel {
+                    coverage[i] += f as f64 * n as f64 / m as f64;
+                }
+            }
+            for (i, c) in coverage.iter().enumerate() {
+                // The weights' f32 rounding (6e-8 relative) times n/m ≤ 5.2, over at most two
+                // targets: under 1e-6.
+                assert!((c - 1.0).abs() < 1e-6, "{n} → {m}: voxel {i} covered {c} times");
+            }
+        }
+    }
+
+    #[test]
+    fn upsampling_interpolates_between_the_two_nearest_centres() {
+        // 4 → 10: target j's centre is source coordinate (j + ½)·0.4 − ½, clamped to [0, 3].
+        let w = axis_weights(4, 10);
+        assert_eq!(w[0], vec![(0, 1.0)]);
+        assert_eq!(w[9], vec![(3, 1.0)]);
+        for (j, taps) in w.iter().enumerate() {
+            let c = ((j as f32 + 0.5) * 0.4 - 0.5).clamp(0.0, 3.0);
+            let at: f32 = taps.iter().map(|&(i, f)| i as f32 * f).sum();
+            let total: f32 = taps.iter().map(|&(_, f)| f).sum();
+            // f32 rounding of a weight below 1 times an index below 4.
+            assert!((at - c).abs() < 1e-5 && (total - 1.0).abs() < 1e-6, "{j}: {taps:?}");
         }
     }
 
