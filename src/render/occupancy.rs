@@ -37,14 +37,34 @@ pub struct ValueRanges {
 }
 
 impl ValueRanges {
+    /// The ranges that trilinear sampling of the volume itself reaches from each cell.
     pub fn new(samples: &[u16], dims: [usize; 3], edge: usize) -> ValueRanges {
+        Self::reached(samples, dims, edge, |i, n| {
+            (reach(i, n, edge), i == 0 || (i + 1) * edge >= n)
+        })
+    }
+
+    /// The ranges that trilinear sampling of the volume's half-resolution level
+    /// (`coarse.rs`) reaches from each cell ([`half_level_reach`]): its texels are means of
+    /// the voxels they cover, so their values lie within those voxels' range.
+    pub fn half_level(samples: &[u16], dims: [usize; 3], edge: usize) -> ValueRanges {
+        Self::reached(samples, dims, edge, |i, n| half_level_reach(i, n, edge))
+    }
+
+    /// `reach(i, n)`: along an axis of n voxels, the voxels that samples in cell i read, and
+    /// whether they read the border beyond the volume (the value 0) too.
+    fn reached(
+        samples: &[u16],
+        dims: [usize; 3],
+        edge: usize,
+        reach: impl Fn(usize, usize) -> (std::ops::Range<usize>, bool) + Sync,
+    ) -> ValueRanges {
         let [nx, ny, nz] = dims;
-        let reach = |i: usize, n: usize| reach(i, n, edge);
         let (cells, ranges) = per_cell(dims, edge, |[cx, cy, cz]| {
             let (mut lo, mut hi) = (u16::MAX, 0u16);
-            let xs = reach(cx, nx);
-            for z in reach(cz, nz) {
-                for y in reach(cy, ny) {
+            let ((xs, bx), (ys, by), (zs, bz)) = (reach(cx, nx), reach(cy, ny), reach(cz, nz));
+            for z in zs {
+                for y in ys.clone() {
                     let row = (z * ny + y) * nx;
                     for &v in &samples[row + xs.start..row + xs.end] {
                         lo = lo.min(v);
@@ -52,8 +72,7 @@ impl ValueRanges {
                     }
                 }
             }
-            let face = |i: usize, n: usize| i == 0 || (i + 1) * edge >= n;
-            if face(cx, nx) || face(cy, ny) || face(cz, nz) {
+            if bx || by || bz {
                 lo = 0;
             }
             [lo, hi]
@@ -101,6 +120,30 @@ fn per_cell<T: Send>(voxels: [usize; 3], edge: usize, cell: impl Fn([usize; 3]) 
 /// on each side (what trilinear sampling inside the cell reaches).
 fn reach(i: usize, n: usize, edge: usize) -> std::ops::Range<usize> {
     (i * edge).saturating_sub(1)..((i + 1) * edge + 1).min(n)
+}
+
+/// The voxel range that trilinear sampling of the half-resolution level reaches from cell i of
+/// `edge` voxels along an axis of n voxels, and whether it reaches the border. The level's
+/// texel j of m = ⌊n/2⌋ (at least 1) covers voxels [j·w, (j+1)·w), w = n/m, in edge
+/// coordinates; a sample at p reads texels ⌊p/w − ½⌋ and the next. Cells at the volume's
+/// faces also take the samples beyond it (a coordinate clamped to its bricks), which read the
+/// border.
+pub fn half_level_reach(i: usize, n: usize, edge: usize) -> (std::ops::Range<usize>, bool) {
+    let m = (n / 2).max(1) as i64;
+    let w = n as f64 / m as f64;
+    let mut first = ((i * edge) as f64 / w - 0.5).floor() as i64;
+    let mut last = (((i + 1) * edge) as f64 / w - 0.5).floor() as i64 + 1;
+    if i == 0 {
+        first = -1;
+    }
+    if (i + 1) * edge >= n {
+        last = m;
+    }
+    let border = first < 0 || last >= m;
+    let (first, last) = (first.clamp(0, m - 1) as f64, last.clamp(0, m - 1) as f64);
+    let lo = (first * w).floor() as usize;
+    let hi = (((last + 1.0) * w).ceil() as usize).min(n);
+    (lo..hi, border)
 }
 
 impl Occupancy {
@@ -363,6 +406,49 @@ impl Grown {
 mod tests {
     use super::*;
     use glam::Vec3;
+
+    /// Every voxel that trilinear sampling of the half-resolution level reads from a point in
+    /// a cell is within the cell's reach, and the border where a tap falls beyond the level:
+    /// sides odd and even, cells of 4 and 8 voxels, points a sixteenth of a voxel apart
+    /// (and two voxels beyond the faces, which the face cells take).
+    #[test]
+    fn the_half_level_reach_covers_every_voxel_its_samples_read() {
+        for n in [1usize, 2, 3, 5, 8, 17, 24, 31, 108] {
+            let m = (n / 2).max(1) as i64;
+            let w = n as f64 / m as f64;
+            for edge in [4usize, 8] {
+                let cells = n.div_ceil(edge);
+                for i in 0..cells {
+                    let (range, border) = half_level_reach(i, n, edge);
+                    let lo = if i == 0 { -2.0 } else { (i * edge) as f64 };
+                    let hi = if i + 1 == cells {
+                        n as f64 + 2.0
+                    } else {
+                        ((i + 1) * edge) as f64
+                    };
+                    let mut p = lo;
+                    while p < hi {
+                        let j0 = (p / w - 0.5).floor() as i64;
+                        for j in [j0, j0 + 1] {
+                            if j < 0 || j >= m {
+                                assert!(border, "n {n}, edge {edge}, cell {i}: p {p} reads the border");
+                                continue;
+                            }
+                            let first = (j as f64 * w).floor() as usize;
+                            let last = (((j + 1) as f64 * w).ceil() as usize).min(n);
+                            assert!(
+                                range.start <= first && last <= range.end,
+                                "n {n}, edge {edge}, cell {i}: p {p} reads voxels {first}..{last}, reach {range:?}"
+                            );
+                        }
+                        p += 1.0 / 16.0;
+                    }
+                    // Not the whole axis: a texel and a half of two voxels or so beyond the cell.
+                    assert!(range.len() <= edge + 2 * (1.5 * w).ceil() as usize + 2, "{range:?}");
+                }
+            }
+        }
+    }
 
     /// Growing is a box of (2d+1) cells per axis about every occupied cell: against a brute
     /// force over a scattered grid, margins of 0 to several cells, different per axis.

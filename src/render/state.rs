@@ -673,7 +673,7 @@ pub(super) fn run(
         let scale = light_tiles::texture_scale(&view);
         // The occupied cells grown by what a view sample reads and a straight beam's deposit
         // reach (`straight`).
-        let grown = cached.grown(scale.map(|s| s * straight));
+        let grown = cached.grown(scale.map(|s| s * straight), coarse);
         // Bent beams end where the device finds they can no longer reach the box
         // (`light_alive`); the straight lines' last planes do not bound them.
         let spans = light_tiles::spans(&view, &grid, light, &grown, !features.refraction);
@@ -765,7 +765,7 @@ pub(super) fn run(
             ("light_start", Resource::Buffer(&start_buffer)),
             ("deposit_cells", Resource::Buffer(&deposit_buffer)),
             ("scatter_table", Resource::Buffer(&scatter_table)),
-            ("bricks", Resource::Buffer(&t.bricks)),
+            ("bricks", Resource::Buffer(t.occupancy_for(coarse).0)),
             ("lbm_grid", Resource::Buffer(lbm_grid)),
             ("lbm_albedo", Resource::Buffer(lbm_table)),
         ];

@@ -40,6 +40,9 @@ pub struct SceneTextures {
     /// Where the light can change, on the CPU (`occupancy.rs`): the cells where particles
     /// absorb or show, and with refraction those where η changes.
     pub occupancy: Vec<Occupancy>,
+    /// The same for renders that sample the half-resolution level, where it was made: its
+    /// texels reach a few voxels further than the volume's (`occupancy::half_level_reach`).
+    pub half_bricks: Option<(Buffer, Vec<Occupancy>)>,
     /// The tables' texels for the sample distances used last (`replace_tables`).
     kept_tables: Vec<TableTexels>,
     /// What the transfer functions do not change, for [`SceneTextures::replace_transfer`].
@@ -53,6 +56,8 @@ struct Untouched {
     brick_ranges: ValueRanges,
     cell_ranges: ValueRanges,
     refracting: Option<(Vec<u32>, Occupancy)>,
+    /// The same as sampled from the half-resolution level, where it was made.
+    half: Option<Box<Untouched>>,
 }
 
 impl Untouched {
@@ -68,6 +73,21 @@ impl Untouched {
             cells.push(refracting_cells.clone());
         }
         (bricks, cells)
+    }
+
+    /// [`Untouched::occupancy`] as sampled from the half-resolution level, where it was
+    /// made, with the bricks' buffer.
+    fn half_occupancy(
+        &self,
+        ctx: &Arc<Context>,
+        tf: &TransferFunctions,
+    ) -> Result<Option<(Buffer, Vec<Occupancy>)>, GpuError> {
+        let Some(half) = &self.half else {
+            return Ok(None);
+        };
+        let (bricks, cells) = half.occupancy(tf);
+        let buffer = Buffer::new_storage_from(ctx, "bricks at half resolution", bytemuck::cast_slice(&bricks.flags))?;
+        Ok(Some((buffer, cells)))
     }
 }
 
@@ -183,7 +203,7 @@ struct Staged {
 
 impl Staged {
     /// Creates a sampled 3D image of `extent` texels in `format` and stages `texels` for it;
-    /// with `coarse`, a second image of its half-resolution level (`coarse.rs`) after it.
+    /// with `half` (`half_of`), a second image of its half-resolution level after it.
     /// Whether it made the second. An image of its own rather than a mip level read through a
     /// sampler clamped to it: llvmpipe compiles a variant of each shader per sampler state, and
     /// with two the viewer's preview (the first level at full resolution after the coarse
@@ -195,11 +215,9 @@ impl Staged {
         format: Format,
         extent: [u32; 3],
         texels: Vec<T>,
-        coarse: bool,
+        half: Option<Vec<T>>,
     ) -> Result<bool, GpuError> {
         let dims = extent.map(|n| n as usize);
-        // A placeholder texel has no finer level to filter.
-        let half = (coarse && dims.iter().product::<usize>() > 1).then(|| super::coarse::half_level(&texels, dims));
         let image = Image::new(ctx, ImageDesc::sampled(label, format, extent, true, 1))?;
         self.uploads.push((
             self.images.len(),
@@ -221,6 +239,12 @@ impl Staged {
         self.images.push(image);
         Ok(true)
     }
+}
+
+/// With `coarse`, the half-resolution level (`coarse.rs`) of `texels` of a `dims` volume; none
+/// for a placeholder texel, which has no finer level to filter.
+fn half_of<T: super::coarse::Channels>(texels: &[T], dims: [usize; 3], coarse: bool) -> Option<Vec<T>> {
+    (coarse && dims.iter().product::<usize>() > 1).then(|| super::coarse::half_level(texels, dims))
 }
 
 /// Where the gradient volume's η comes from: a separate η volume with its value range (else
@@ -258,7 +282,17 @@ impl SceneTextures {
         let brick_ranges = ValueRanges::new(&samples, vol_dims, super::bricks::BRICK);
         let cell_ranges = ValueRanges::new(&samples, vol_dims, super::occupancy::CELL);
         let mut refracting = None;
+        let samples_half = half_of(&samples, vol_dims, coarse);
+        let mut half_ranges = samples_half.as_ref().map(|_| {
+            Box::new(Untouched {
+                brick_ranges: ValueRanges::half_level(&samples, vol_dims, super::bricks::BRICK),
+                cell_ranges: ValueRanges::half_level(&samples, vol_dims, super::occupancy::CELL),
+                refracting: None,
+                half: None,
+            })
+        });
 
+        let mut gradient_half = None;
         let (gradient_extent, gradient_texels) = match refraction {
             Some((eta_source, scheme)) => {
                 let (dims, g) = match eta_source {
@@ -269,12 +303,21 @@ impl SceneTextures {
                     None => (volume.dims, gradient_volume(&samples, volume.dims, &tf.eta, scheme)),
                 };
                 let bricks = brick_ranges.cells();
-                let mut bends = super::bricks::Bricks {
-                    flags: vec![0; bricks.iter().product()],
-                    dims: bricks.map(|n| n as u32),
+                // Where η changes, as read from `texels` of `dims` voxels.
+                let bending = |texels: &[[f16; 4]], dims: [usize; 3]| {
+                    let mut bends = super::bricks::Bricks {
+                        flags: vec![0; bricks.iter().product()],
+                        dims: bricks.map(|n| n as u32),
+                    };
+                    super::bricks::add_refracting(&mut bends, volume.dims, texels, dims);
+                    (bends.flags, Occupancy::refracting(texels, dims))
                 };
-                super::bricks::add_refracting(&mut bends, volume.dims, &g, dims);
-                refracting = Some((bends.flags, Occupancy::refracting(&g, dims)));
+                refracting = Some(bending(&g, dims));
+                let g_half = half_of(&g, dims, coarse);
+                if let (Some(h), Some(gh)) = (half_ranges.as_mut(), g_half.as_ref()) {
+                    h.refracting = Some(bending(gh, super::coarse::half_dims(dims)));
+                }
+                gradient_half = g_half;
                 ([dims[0] as u32, dims[1] as u32, dims[2] as u32], g)
             }
             None => ([1, 1, 1], vec![[half::f16::ZERO; 4]]),
@@ -294,22 +337,23 @@ impl SceneTextures {
         };
         // Each volume's texels go to the staging buffer as they are, once all are made.
         let mut made_half = [false; 3];
-        made_half[0] = staged.volume(ctx, "volume", Format::R16_UNORM, vol_extent, samples, coarse)?;
+        made_half[0] = staged.volume(ctx, "volume", Format::R16_UNORM, vol_extent, samples, samples_half)?;
         made_half[1] = staged.volume(
             ctx,
             "gradient volume",
             Format::R16G16B16A16_SFLOAT,
             gradient_extent,
             gradient_texels,
-            coarse,
+            gradient_half,
         )?;
+        let orientation_half = half_of(&orientation_texels, orientation_extent.map(|n| n as usize), coarse);
         made_half[2] = staged.volume(
             ctx,
             "orientation volume",
             Format::R16G16B16A16_SNORM,
             orientation_extent,
             orientation_texels,
-            coarse,
+            orientation_half,
         )?;
 
         let table_texels = TableTexels::new(tf, sample_distance);
@@ -406,9 +450,11 @@ impl SceneTextures {
             brick_ranges,
             cell_ranges,
             refracting,
+            half: half_ranges,
         };
         let (occupancy, cells) = untouched.occupancy(tf);
         let bricks = Buffer::new_storage_from(ctx, "bricks", bytemuck::cast_slice(&occupancy.flags))?;
+        let half_bricks = untouched.half_occupancy(ctx, tf)?;
         let textures = SceneTextures {
             volume,
             gradient,
@@ -424,6 +470,7 @@ impl SceneTextures {
             bricks,
             brick_dims: occupancy.dims,
             occupancy: cells,
+            half_bricks,
             kept_tables: vec![table_texels],
             untouched,
         };
@@ -488,6 +535,7 @@ impl SceneTextures {
         self.bricks = Buffer::new_storage_from(ctx, "bricks", bytemuck::cast_slice(&bricks.flags))?;
         self.brick_dims = bricks.dims;
         self.occupancy = cells;
+        self.half_bricks = self.untouched.half_occupancy(ctx, tf)?;
         // Tables of the old transfer functions are of no use any more.
         self.kept_tables.clear();
         self.replace_tables(ctx, tf, sample_distance)
@@ -495,7 +543,9 @@ impl SceneTextures {
 
     /// Bytes of device memory the textures and the brick flags hold.
     pub fn bytes(&self) -> u64 {
-        self.images().iter().map(|i| i.bytes()).sum::<u64>() + self.bricks.bytes()
+        self.images().iter().map(|i| i.bytes()).sum::<u64>()
+            + self.bricks.bytes()
+            + self.half_bricks.as_ref().map_or(0, |(b, _)| b.bytes())
     }
 
     /// The images in the order [`PendingUpload`] indexes them (the order of creation).
@@ -507,6 +557,15 @@ impl SceneTextures {
             .chain([Some(&self.particle_table), Some(&self.medium_table), Some(&self.env)])
             .flatten()
             .collect()
+    }
+
+    /// The bricks' buffer and the occupied cells for renders that sample the volumes at half
+    /// resolution (`coarse`, where the level was made) or at full resolution.
+    pub fn occupancy_for(&self, coarse: bool) -> (&Buffer, &Vec<Occupancy>) {
+        match (&self.half_bricks, coarse && self.half[0].is_some()) {
+            (Some((bricks, cells)), true) => (bricks, cells),
+            _ => (&self.bricks, &self.occupancy),
+        }
     }
 
     /// The volume, gradient and orientation volumes the passes sample: at half resolution
@@ -610,8 +669,9 @@ impl TexturesKey {
     }
 }
 
-/// Occupied cells grown, with the growth in cells of each grid.
-type KeptGrowth = (Vec<[usize; 3]>, Arc<Vec<Grown>>);
+/// Occupied cells grown, with whether they are the half-resolution level's and the growth in
+/// cells of each grid.
+type KeptGrowth = (bool, Vec<[usize; 3]>, Arc<Vec<Grown>>);
 
 /// Scene textures kept by the renderer between renders.
 pub struct CachedTextures {
@@ -697,22 +757,17 @@ impl CachedTextures {
     /// The textures' occupied cells grown by `margin` (`Occupancy::grown`), kept while the
     /// growth in cells stays the same: successive frames of a drag mostly ask for the same,
     /// and at the interactive level's coarse planes and beams growing took tens of ms.
-    pub fn grown(&self, margin: [f32; 3]) -> Arc<Vec<Grown>> {
-        let key: Vec<[usize; 3]> = self.textures.occupancy.iter().map(|o| o.growth(margin)).collect();
+    pub fn grown(&self, margin: [f32; 3], coarse: bool) -> Arc<Vec<Grown>> {
+        let (_, occupancy) = self.textures.occupancy_for(coarse);
+        let key: Vec<[usize; 3]> = occupancy.iter().map(|o| o.growth(margin)).collect();
         let mut kept = self.grown.borrow_mut();
-        if let Some((k, g)) = kept.as_ref() {
-            if *k == key {
+        if let Some((c, k, g)) = kept.as_ref() {
+            if *c == coarse && *k == key {
                 return g.clone();
             }
         }
-        let g = Arc::new(
-            self.textures
-                .occupancy
-                .iter()
-                .map(|o| o.grown(margin))
-                .collect::<Vec<_>>(),
-        );
-        *kept = Some((key, g.clone()));
+        let g = Arc::new(occupancy.iter().map(|o| o.grown(margin)).collect::<Vec<_>>());
+        *kept = Some((coarse, key, g.clone()));
         g
     }
 

@@ -207,9 +207,8 @@ pub struct Quality {
     /// axis (each texel the box-filtered mean of the voxels it covers; an eighth of the texels
     /// more on the device). For coarse renders whose planes and pixels are two voxels apart
     /// or more, which the full resolution only aliases: the viewer's first levels. The bricks
-    /// and cells that skip empty space stay the full resolution's, so a faint fringe of the
-    /// half level's blur, up to two voxels beyond what shows at full resolution, is left out.
-    /// Left out of written scenes when 0.
+    /// and cells that skip empty space then reach as far as the half level's texels read
+    /// (`occupancy::half_level_reach`). Left out of written scenes when 0.
     #[serde(skip_serializing_if = "is_zero")]
     pub volume_level: u32,
 }
