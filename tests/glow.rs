@@ -386,11 +386,10 @@ fn a_translucent_sphere_lit_from_the_side_glows_into_its_shadow_like_the_monte_c
     //   follows diffusion theory with the similarity σ_s(1 − g), which a sphere one transport
     //   mean free path in radius, lit by g = 0.6 light, is too small for.
     // Bounds: measured + 0.03–0.046 (the noise, and lavapipe against other drivers). What would
-    // close the rest of the gap: the spread mode's cloud with the transport's own shape, a
-    // narrow core and wide wings that leave small media through their sides (fitted mixtures
-    // reach about 0.10 on both profiles; docs/accuracy.md), or its light leaving through the
-    // sides and the far face as it does through the lit one (a cloud that knows where the
-    // medium ends around it, not only behind it); transport beyond diffusion in the lattice (more
+    // close the rest of the gap: the spread mode's light leaving through the sides and the
+    // far face as it does through the lit one (a cloud that knows where the medium ends
+    // around it, not only behind it: fitted mixtures of a core and wings, whose wings stand
+    // in for that escape, reach about 0.10 on both profiles, docs/accuracy.md); transport beyond diffusion in the lattice (more
     // directions than six, or the light scattered a few times traced before it diffuses).
     assert!(l1[0].0 < 0.14 && l1[0].1 < 0.18, "spread {:?}", l1[0]);
     assert!(l1[1].0 < 0.31 && l1[1].1 < 0.33, "lbm {:?}", l1[1]);

@@ -12,7 +12,7 @@ use std::time::Instant;
 use crate::gpu::Context;
 
 use crate::reference::scatter::{beam_widths, path_moments, transverse_moment, Centred, Slab};
-use crate::transfer::scattering::{mean_square_angle, premoze_eq1, premoze_eq18};
+use crate::transfer::scattering::{mean_square_angle, premoze_eq1, premoze_eq18, SpreadMoments};
 
 use super::scatter_modes::{self, ModeRow, ModesPlan};
 use super::{plot, write_err, BenchError};
@@ -151,8 +151,11 @@ pub fn premoze_tables(photons: u64) -> String {
     let _ = writeln!(
         md,
         "\nAll the light after a path length s (time-resolved), E[x² + y²] against the exact moment \
-         (4/3)∫₀ˢ(1 − e^(−b(1−g²)t))(1 − e^(−b(1−g)(s−t)))/(b(1−g)) dt, b = 1 /mm:\n\n\
-         | s mm | b(1−g)s | MC E[r²] | ± | exact | MC / exact |\n|---|---|---|---|---|---|"
+         (4/3)∫₀ˢ(1 − e^(−b(1−g²)t))(1 − e^(−b(1−g)(s−t)))/(b(1−g)) dt, and E[(x² + y²)²] against the \
+         fourth-moment recurrence (`transfer::scattering::SpreadMoments`) with the kurtosis across the beam \
+         of the light that has scattered (1 for a Gaussian cloud), b = 1 /mm:\n\n\
+         | s mm | b(1−g)s | MC E[r²] | ± | exact | MC / exact | MC E[r⁴] | ± | moments | kurtosis |\n\
+         |---|---|---|---|---|---|---|---|---|---|"
     );
     let b = 1.0;
     let lengths = [1.0, 5.0, 10.0, 20.0, 50.0];
@@ -167,14 +170,20 @@ pub fn premoze_tables(photons: u64) -> String {
     let moments = path_moments(&Centred(slab), &lengths, photons, 1);
     for m in moments {
         let exact = transverse_moment(b, G, m.path_length);
+        let mut fourth = SpreadMoments::default();
+        fourth.step(b, G, m.path_length);
         let _ = writeln!(
             md,
-            "| {} | {:.1} | {:.3} | {:.3} | {exact:.3} | {:.3} |",
+            "| {} | {:.1} | {:.3} | {:.3} | {exact:.3} | {:.3} | {:.4e} | {:.1e} | {:.4e} | {:.2} |",
             m.path_length,
             b * (1.0 - G) * m.path_length,
             m.mean_r2,
             m.mean_r2_error,
-            m.mean_r2 / exact
+            m.mean_r2 / exact,
+            m.mean_r4,
+            m.mean_r4_error,
+            fourth.r4,
+            fourth.scattered_kurtosis()
         );
     }
     md

@@ -655,6 +655,9 @@ pub struct PathMoments {
     pub travelling: f64,
     pub mean_r2: f64,
     pub mean_r2_error: f64,
+    /// E[(x² + y²)²], the fourth moment across the beam.
+    pub mean_r4: f64,
+    pub mean_r4_error: f64,
     pub mean_z: f64,
     pub mean_z_error: f64,
 }
@@ -666,9 +669,9 @@ pub fn path_moments<M: ScatteringMedium>(medium: &M, lengths: &[f64], photons: u
     let sums = run(
         photons,
         seed,
-        || vec![[0.0f64; 5]; n],
+        || vec![[0.0f64; 6]; n],
         |_, rng| {
-            let mut out = vec![[0.0f64; 5]; n];
+            let mut out = vec![[0.0f64; 6]; n];
             let mut travelled = 0.0;
             walk(medium, DVec3::ZERO, DVec3::Z, rng, |a, b| {
                 let l = a.distance(b);
@@ -676,7 +679,7 @@ pub fn path_moments<M: ScatteringMedium>(medium: &M, lengths: &[f64], photons: u
                     if s >= travelled && s < travelled + l {
                         let p = a.lerp(b, (s - travelled) / l);
                         let r2 = p.x * p.x + p.y * p.y;
-                        out[k] = [1.0, r2, r2 * r2, p.z, p.z * p.z];
+                        out[k] = [1.0, r2, r2 * r2, p.z, p.z * p.z, r2 * r2 * r2 * r2];
                     }
                 }
                 travelled += l;
@@ -685,7 +688,7 @@ pub fn path_moments<M: ScatteringMedium>(medium: &M, lengths: &[f64], photons: u
         },
         |a, b| {
             for (x, y) in a.iter_mut().zip(b) {
-                for k in 0..5 {
+                for k in 0..6 {
                     x[k] += y[k];
                 }
             }
@@ -694,14 +697,16 @@ pub fn path_moments<M: ScatteringMedium>(medium: &M, lengths: &[f64], photons: u
     lengths
         .iter()
         .zip(sums)
-        .map(|(&path_length, [c, r2, r4, z, z2])| {
+        .map(|(&path_length, [c, r2, r4, z, z2, r8])| {
             let m = c.max(1.0);
-            let (mean_r2, mean_z) = (r2 / m, z / m);
+            let (mean_r2, mean_r4, mean_z) = (r2 / m, r4 / m, z / m);
             PathMoments {
                 path_length,
                 travelling: c / photons.max(1) as f64,
                 mean_r2,
-                mean_r2_error: ((r4 / m - mean_r2 * mean_r2).max(0.0) / m).sqrt(),
+                mean_r2_error: ((mean_r4 - mean_r2 * mean_r2).max(0.0) / m).sqrt(),
+                mean_r4,
+                mean_r4_error: ((r8 / m - mean_r4 * mean_r4).max(0.0) / m).sqrt(),
                 mean_z,
                 mean_z_error: ((z2 / m - mean_z * mean_z).max(0.0) / m).sqrt(),
             }
