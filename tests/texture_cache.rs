@@ -98,10 +98,19 @@ fn a_transfer_function_edit_keeps_the_volume_images_unless_eta_changes() {
     // only the two tables are copied in (16-bit rgba texels, TABLE_SIZE² each). An edit of η
     // remakes the gradient volume, and everything is copied again. Each image must be the
     // fresh renderer's.
+    // At `quality.volume_level` 1 the half level's bricks and occupied cells are remade as
+    // well (they reach further than the full resolution's).
+    for level in [0, 1] {
+        transfer_edits_at_volume_level(level);
+    }
+}
+
+fn transfer_edits_at_volume_level(level: u32) {
     let table_bytes = 2 * (TABLE_SIZE * TABLE_SIZE * 8) as u64;
     let mut gpu = Gpu::new();
     let req = RenderRequest::new(48, 40);
     let mut p = prepared();
+    p.scene.quality.volume_level = level;
     let full = gpu.render(&p, &req).stats.upload_bytes;
     assert!(
         full > table_bytes + 32 * 32 * 32 * 2,
@@ -114,6 +123,13 @@ fn a_transfer_function_edit_keeps_the_volume_images_unless_eta_changes() {
         (
             "opacity",
             Box::new(|p: &mut PreparedScene| p.tf.opacity.points = vec![[0.0, 0.0], [0.3, 0.8]]),
+            false,
+        ),
+        (
+            // The clear values (the air around the lens) absorb now: bricks that were empty
+            // are not any more.
+            "opacity of the clear values",
+            Box::new(|p: &mut PreparedScene| p.tf.opacity.points = vec![[0.0, 0.05], [0.3, 0.8]]),
             false,
         ),
         (
@@ -139,10 +155,19 @@ fn a_transfer_function_edit_keeps_the_volume_images_unless_eta_changes() {
         let before = gpu.render(&p, &req).image.pixels;
         edit(&mut p);
         let out = gpu.render(&p, &req);
-        assert!(out.image.pixels != before, "{name}: the edit changes the image");
-        assert!(out.image.pixels == fresh(&p), "{name}: not the fresh renderer's image");
+        assert!(
+            out.image.pixels != before,
+            "level {level}, {name}: the edit changes the image"
+        );
+        assert!(
+            out.image.pixels == fresh(&p),
+            "level {level}, {name}: not the fresh renderer's image"
+        );
         let expected = if remade { full } else { table_bytes };
-        assert_eq!(out.stats.upload_bytes, expected, "{name}: bytes copied in");
+        assert_eq!(
+            out.stats.upload_bytes, expected,
+            "level {level}, {name}: bytes copied in"
+        );
     }
     gpu.assert_clean();
 }

@@ -55,7 +55,7 @@ pub fn half_level<T: Channels>(texels: &[T], dims: [usize; 3]) -> Vec<T> {
 /// The coarse texels' weights along an axis of `n` voxels.
 #[cfg(test)]
 fn half_axis_weights(n: usize) -> Vec<Vec<(usize, f32)>> {
-    crate::volume::resample::axis_weights(n, (n / 2).max(1))
+    crate::volume::resample::axis_weights(n, crate::volume::half_level_side(n))
 }
 
 #[cfg(test)]
@@ -66,7 +66,7 @@ mod tests {
     fn each_coarse_texel_weighs_what_it_covers_of_every_voxel() {
         for n in [1usize, 2, 3, 7, 8, 108, 255] {
             let w = half_axis_weights(n);
-            assert_eq!(w.len(), (n / 2).max(1));
+            assert_eq!(w.len(), crate::volume::half_level_side(n));
             // Every voxel is covered exactly once over all coarse texels: each texel's weights
             // sum to 1 and, times the texel's width n/m, to the voxels it spans.
             let mut coverage = vec![0.0f64; n];

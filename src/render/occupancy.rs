@@ -129,7 +129,7 @@ fn reach(i: usize, n: usize, edge: usize) -> std::ops::Range<usize> {
 /// faces also take the samples beyond it (a coordinate clamped to its bricks), which read the
 /// border.
 pub fn half_level_reach(i: usize, n: usize, edge: usize) -> (std::ops::Range<usize>, bool) {
-    let m = (n / 2).max(1) as i64;
+    let m = crate::volume::half_level_side(n) as i64;
     let w = n as f64 / m as f64;
     let mut first = ((i * edge) as f64 / w - 0.5).floor() as i64;
     let mut last = (((i + 1) * edge) as f64 / w - 0.5).floor() as i64 + 1;
@@ -414,7 +414,7 @@ mod tests {
     #[test]
     fn the_half_level_reach_covers_every_voxel_its_samples_read() {
         for n in [1usize, 2, 3, 5, 8, 17, 24, 31, 108] {
-            let m = (n / 2).max(1) as i64;
+            let m = crate::volume::half_level_side(n) as i64;
             let w = n as f64 / m as f64;
             for edge in [4usize, 8] {
                 let cells = n.div_ceil(edge);

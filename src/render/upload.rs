@@ -562,7 +562,8 @@ impl SceneTextures {
     /// The bricks' buffer and the occupied cells for renders that sample the volumes at half
     /// resolution (`coarse`, where the level was made) or at full resolution.
     pub fn occupancy_for(&self, coarse: bool) -> (&Buffer, &Vec<Occupancy>) {
-        match (&self.half_bricks, coarse && self.half[0].is_some()) {
+        // `half_bricks` is made exactly where the volume's half level is.
+        match (&self.half_bricks, coarse) {
             (Some((bricks, cells)), true) => (bricks, cells),
             _ => (&self.bricks, &self.occupancy),
         }

@@ -45,7 +45,12 @@ pub struct Volume {
 /// The voxels of a volume's half-resolution level (`quality.volume_level` 1): ⌊n/2⌋ per
 /// axis, at least 1, a mip level's extent.
 pub fn half_level_dims(dims: [usize; 3]) -> [usize; 3] {
-    dims.map(|n| (n / 2).max(1))
+    dims.map(half_level_side)
+}
+
+/// [`half_level_dims`] along one axis of `n` voxels.
+pub fn half_level_side(n: usize) -> usize {
+    (n / 2).max(1)
 }
 
 impl Volume {
