@@ -493,6 +493,9 @@ const ACC_LEVELS: u32 = 3u;
 // The spread mode's pyramid (only scattered light, which spreads further): texels of up to
 // 2^(SCATTER_LEVELS-1) pixels.
 const SCATTER_LEVELS: u32 = 7u;
+// The spread mode's texels per beam and half of `beam_scatter`: the scattered light and its
+// lag, the second moments, the entry state, and two of the fourth moment (`spread_step`).
+const SCATTER_LAYERS: u32 = 5u;
 
 fn acc_levels() -> u32 {
     if (SCATTER) {
@@ -754,7 +757,7 @@ fn beams_init(ij: vec2<u32>) {
         store_beam_power(3u, ij, b.power);
     }
     if (SCATTER) {
-        for (var j = 0; j < 3; j++) {
+        for (var j = 0; j < i32(SCATTER_LAYERS); j++) {
             textureStore(beam_scatter, vec2<i32>(ij), j, vec4<f32>(0.0));
         }
     }
@@ -1359,6 +1362,104 @@ fn deposit_cloud(slot: u32, c: vec2<f32>, variance: f32, amount: vec3<f32>, seed
     }
 }
 
+// The fourth moment across the beam, F = E[|r⊥|⁴], which shapes the deposited cloud
+// (`transfer::scattering::SpreadMoments` gives its equations): with u = d⊥, M = E[(r⊥·u)|u|²],
+// H = E[(r⊥·u)²], K = E[|r⊥|²|u|²], G = E[|r⊥|²(r⊥·u)] and k_l = b(1 − g^l),
+//
+//   dM/ds = E[|u|⁴] + (4/5)(k₃ − k₁)C − k₃M,  dH/ds = 2M + (k₂/3)R − k₂H,
+//   dK/ds = 2M + (2k₂/3)R − k₂K,  dG/ds = 2H + K − k₁G,  dF/ds = 4G,
+//
+// E[|u|⁴] = (8/15)(1 − (10/7)P₂ + (3/7)P₄). Kept per beam: (1 − P₄, M, H, K) and (G, F).
+struct Fourth {
+    q4: f32,
+    m: f32,
+    h: f32,
+    k: f32,
+    g: f32,
+    f: f32,
+    c: f32,  // C and R, integrated alongside (the second moments kept are `spread_moments`')
+    r: f32,
+}
+
+// The exact step over t of dy/dt = s − ky with s held, for k = k₁, k₂, k₃ (x, y, z): y·e + s·w
+// with e = e^(−kt) and w = t·(1 − e^(−kt))/(kt).
+struct Relaxation {
+    e: vec3<f32>,
+    w: vec3<f32>,
+}
+
+fn relaxation(k: vec3<f32>, t: f32) -> Relaxation {
+    let e = exp(-k * t);
+    var r: Relaxation;
+    r.e = e;
+    for (var i = 0; i < 3; i++) {
+        r.w[i] = t * spread_mean_exp_of(k[i] * t, e[i]);
+    }
+    return r;
+}
+
+// y advanced by the relaxation r with the rates at `at` held (1 − P₂ = q, 1 − P₄ = q4
+// there); k = (k₁, k₂, k₃).
+fn fourth_relaxed(y: Fourth, at: Fourth, q: f32, q4: f32, k: vec3<f32>, r: Relaxation, t: f32) -> Fourth {
+    let sine2 = (2.0 / 3.0) * q;
+    let sine4 = (8.0 / 15.0) * (1.0 - (10.0 / 7.0) * (1.0 - q) + (3.0 / 7.0) * (1.0 - q4));
+    var o = y;
+    o.c = y.c * r.e.x + sine2 * r.w.x;
+    o.r = y.r + 2.0 * at.c * t;
+    o.m = y.m * r.e.z + (sine4 + 0.8 * (k.z - k.x) * at.c) * r.w.z;
+    o.h = y.h * r.e.y + (2.0 * at.m + (k.y / 3.0) * at.r) * r.w.y;
+    o.k = y.k * r.e.y + (2.0 * at.m + (2.0 * k.y / 3.0) * at.r) * r.w.y;
+    o.g = y.g * r.e.x + (2.0 * at.h + at.k) * r.w.x;
+    o.f = y.f + 4.0 * at.g * t;
+    return o;
+}
+
+// The fourth-moment state y advanced over a path h with scattering optical depth bh and
+// anisotropy g, from 1 − P₂ = q0: exponential midpoint steps (second order; stable at any
+// optical depth, where the moments relax to the rates they are driven at) of at most one
+// relaxation length, 4 at most; P₂ and P₄ exact.
+fn spread_fourth(y0: Fourth, q0: f32, bh: f32, g: f32, h: f32) -> Fourth {
+    var y = y0;
+    if (h <= 0.0) {
+        return y;
+    }
+    let b = bh / h;
+    let g2 = g * g;
+    let k = b * vec3<f32>(1.0 - g, 1.0 - g2, 1.0 - g2 * g);
+    let k4 = b * (1.0 - g2 * g2);
+    let n = u32(clamp(ceil(max(max(k.x, k.y), max(k.z, k4)) * h), 1.0, 4.0));
+    let dt = h / f32(n);
+    let half_step = relaxation(k, 0.5 * dt);
+    let whole = relaxation(k, dt);
+    // P₂ and P₄ at the start and the middle of each step.
+    var p2 = 1.0 - q0;
+    var p4 = 1.0 - y0.q4;
+    let e4 = exp(-0.5 * k4 * dt);
+    for (var i = 0u; i < n; i++) {
+        let mid = fourth_relaxed(y, y, 1.0 - p2, 1.0 - p4, k, half_step, 0.5 * dt);
+        p2 *= half_step.e.y;
+        p4 *= e4;
+        y = fourth_relaxed(y, mid, 1.0 - p2, 1.0 - p4, k, whole, dt);
+        p2 *= half_step.e.y;
+        p4 *= e4;
+    }
+    y.q4 = 1.0 - p4;
+    return y;
+}
+
+// The two parts of a cloud of kurtosis `kurtosis` (E[|r|⁴] / (2E[|r|²]²)): (share, variance
+// relative to the cloud's) of its core (xy) and wings (zw); `transfer::scattering::
+// core_and_wings`, with CLOUD_CORE_SHARE 0.5.
+fn spread_cloud_parts(kurtosis: f32) -> vec4<f32> {
+    let excess = kurtosis - 1.0;
+    if (!(excess > 0.0)) {
+        return vec4<f32>(0.5, 1.0, 0.5, 1.0);
+    }
+    let f = max(0.5, 1.0 - 1.0 / kurtosis);
+    let core = max(1.0 - sqrt(excess * (1.0 - f) / f), 0.0);
+    return vec4<f32>(f, core, 1.0 - f, (1.0 - f * core) / (1.0 - f));
+}
+
 // Light scattered back out of the face a beam entered by. Besides the transverse moments the
 // beam carries the longitudinal ones of its light: with w = s − z the lag of a photon behind
 // the beam (w' = 1 − μ),
@@ -1447,8 +1548,8 @@ fn spread_behind(m: vec4<f32>, w: f32, e: vec4<f32>, frac: f32) -> f32 {
 // value b.value); deposits its scattered light on plane k. du, dv: the beam's cell.
 fn spread_step(ij: vec2<u32>, index: u32, k: u32, b: Beam, u_before: vec3<f32>, x0: vec3<f32>, value_front: f32, du: vec3<f32>, dv: vec3<f32>) {
     let t = vec2<i32>(ij);
-    let read = i32(3u * ((k - 1u) % 2u));
-    let write = i32(3u * (k % 2u));
+    let read = i32(SCATTER_LAYERS * ((k - 1u) % 2u));
+    let write = i32(SCATTER_LAYERS * (k % 2u));
     let a = textureLoad(beam_scatter, t, read);
     var scattered = a.rgb;
     let l = length(b.pos - x0);
@@ -1466,6 +1567,9 @@ fn spread_step(ij: vec2<u32>, index: u32, k: u32, b: Beam, u_before: vec3<f32>, 
     let m_before = textureLoad(beam_scatter, t, read + 1);
     let e_before = textureLoad(beam_scatter, t, read + 2);
     let m = spread_moments(m_before, albedo * tau, sc.y, l);
+    let f_before = textureLoad(beam_scatter, t, read + 3);
+    let gf_before = textureLoad(beam_scatter, t, read + 4);
+    let fourth = spread_fourth(Fourth(f_before.x, f_before.y, f_before.z, f_before.w, gf_before.x, gf_before.y, m_before.y, m_before.z), m_before.x, albedo * tau, sc.y, l);
     // The lag of all the light behind the beam, s − E[z]: it grows by ∫(1 − P₁) over the
     // segment, P₁ = e^{−(1−g)∫b} at the local g (exact where g is constant).
     let y1 = (1.0 - sc.y) * albedo * tau;
@@ -1491,6 +1595,8 @@ fn spread_step(ij: vec2<u32>, index: u32, k: u32, b: Beam, u_before: vec3<f32>, 
     textureStore(beam_scatter, t, write, vec4<f32>(scattered, lag));
     textureStore(beam_scatter, t, write + 1, m);
     textureStore(beam_scatter, t, write + 2, e);
+    textureStore(beam_scatter, t, write + 3, vec4<f32>(fourth.q4, fourth.m, fourth.h, fourth.k));
+    textureStore(beam_scatter, t, write + 4, vec4<f32>(fourth.g, fourth.f, 0.0, 0.0));
     if (max(scattered.r, max(scattered.g, scattered.b)) <= 0.0) {
         return;
     }
@@ -1507,9 +1613,19 @@ fn spread_step(ij: vec2<u32>, index: u32, k: u32, b: Beam, u_before: vec3<f32>, 
     let pu = project(b.pos + du) - project(b.pos);
     let pv = project(b.pos + dv) - project(b.pos);
     let cell = (dot(pu, pu) + dot(pv, pv)) / 24.0;
-    let variance = spread / pixel_area(b.pos.z) + cell;
-    let d = P.light_dir.xyz;
-    deposit_cloud(deposit_slot(k), c, variance, scattered * deposit_scale(b.pos.z, d), hash(index ^ hash(k ^ 0x27d4eb2fu)));
+    // The cloud as a core and wings with its second and fourth moments (the scattered
+    // light's: F·frac / (2R²)), each with the cell's footprint.
+    let kurtosis = fourth.f * frac / max(2.0 * m.z * m.z, 1e-30);
+    let parts = spread_cloud_parts(kurtosis);
+    let amount = scattered * deposit_scale(b.pos.z, P.light_dir.xyz);
+    let seed = hash(index ^ hash(k ^ 0x27d4eb2fu));
+    let v = spread / pixel_area(b.pos.z);
+    if (parts.y == parts.w) {
+        deposit_cloud(deposit_slot(k), c, v + cell, amount, seed);
+    } else {
+        deposit_cloud(deposit_slot(k), c, parts.y * v + cell, amount * parts.x, seed);
+        deposit_cloud(deposit_slot(k), c, parts.w * v + cell, amount * parts.z, seed ^ 0x85ebca6bu);
+    }
 }
 
 // The scattered light on plane k at the view-space point p (fluence relative to the source).

@@ -313,12 +313,12 @@ fn a_faint_sphere_scatters_the_light_once_like_the_monte_carlo_light() {
         polar_deg: 70.0,
     };
     let l1 = s.measure("faint sphere").l1;
-    // Measured: spread 0.184 along the light, 0.219 radial, 10–25 % too bright inside the
-    // disc: it sees its scattered light as isotropic, while light scattered once in a faint
-    // medium still travels near the light's direction (HG(g) about it) and the particles send
-    // it towards the viewer through HG(g²) at 110°, about half of isotropic; and it deposits
-    // that light as one Gaussian about its centroid, where the light scattered once is a
-    // forward cone (0.099 and 0.117 before the deposit followed the centroid's lag, which
+    // Measured: spread 0.186 along the light, 0.221 radial (0.184 and 0.219 with one
+    // Gaussian cloud), 10–25 % too bright inside the disc: it sees its scattered light as
+    // isotropic, while light scattered once in a faint medium still travels near the light's
+    // direction (HG(g) about it) and the particles send it towards the viewer through HG(g²)
+    // at 110°, about half of isotropic; and it deposits that light as a core and wings about
+    // its centroid, where the light scattered once is a forward cone (0.099 and 0.117 before the deposit followed the centroid's lag, which
     // left more of it beyond the sphere; 0.189 and 0.224 before the light scattered back out
     // of the lit face left). lbm 0.032 and 0.024. Monte Carlo noise adds about
     // 0.02. Bounds: about measured + 0.03 (0.028–0.041).

@@ -28,6 +28,29 @@ fn slab_volume(hole: Option<f32>) -> Volume {
     slab::slab_volume(hole).expect("the slab volume")
 }
 
+/// The mean r² within `max_r` of the axis of the light the spread mode carries at path
+/// length `s` through scattering b with anisotropy g, behind the hole (`HOLE`): the
+/// unscattered light e^(−bs) across the hole, the scattered light as the core and wings of
+/// `SpreadMoments::scattered_cloud` spread further by the hole's width (absorption thins both
+/// alike). The hole, a uniform disc, is taken as a Gaussian of the same variance.
+fn windowed_cloud_r2(b: f64, g: f64, s: f64, max_r: f64) -> f64 {
+    let mut m = SpreadMoments::default();
+    m.step(b, g, s);
+    let hole = (HOLE as f64).powi(2) / 4.0;
+    let scattered = 1.0 - (-b * s).exp();
+    let mut parts = vec![(1.0 - scattered, hole)];
+    parts.extend(m.scattered_cloud().map(|(share, v)| (scattered * share, v + hole)));
+    // A Gaussian of variance v per axis: power within R is 1 − e^(−x), x = R²/2v, and ∫r² over
+    // it 2v(1 − e^(−x)(1 + x)).
+    let (mut power, mut r2) = (0.0, 0.0);
+    for (share, v) in parts {
+        let x = max_r * max_r / (2.0 * v.max(1e-12));
+        power += share * (1.0 - (-x).exp());
+        r2 += share * 2.0 * v * (1.0 - (-x).exp() * (1.0 + x));
+    }
+    r2 / power
+}
+
 #[test]
 fn a_narrow_beam_spreads_in_a_forward_scattering_slab_like_the_monte_carlo_light() {
     let mut gpu = Gpu::new();
@@ -58,13 +81,9 @@ fn a_narrow_beam_spreads_in_a_forward_scattering_slab_like_the_monte_carlo_light
             let gpu_w = (gpu_moments[i].1 - gpu_moments[0].1).max(0.0).sqrt();
             let mc_w = (mc[i].mean_r2 - mc[0].mean_r2).max(0.0).sqrt();
             let power = gpu_moments[i].0 / gpu_moments[0].0;
-            // The moments the spread mode follows, at path length = depth.
-            let r2 = |s: f64| {
-                let mut m = SpreadMoments::default();
-                m.step(b as f64, g as f64, s);
-                m.r2
-            };
-            let model_w = (r2(mc_depths[i]) - r2(mc_depths[0])).sqrt();
+            // The cloud the spread mode deposits, at path length = depth, within the window.
+            let model_r2 = |s: f64| windowed_cloud_r2(b as f64, g as f64, s, max_r as f64);
+            let model_w = (model_r2(mc_depths[i]) - model_r2(mc_depths[0])).max(0.0).sqrt();
             report.push((b, mc_depths[i], gpu_w, mc_w, model_w, power, mc[i].flux / mc[0].flux));
         }
     }
@@ -82,27 +101,28 @@ fn a_narrow_beam_spreads_in_a_forward_scattering_slab_like_the_monte_carlo_light
         );
     }
     for &(b, depth, gpu_w, mc_w, model_w, ..) in &report {
-        // The GPU follows the moment equations it implements: measured within 1.2 % where
-        // the light's spread (model width ≤ 15 voxels) stays well inside the 30-voxel
-        // window and the frame. 3 % bounds the deposit's rounding and the f16 beam state.
-        if model_w <= 15.0 {
-            assert!(
-                (gpu_w / model_w - 1.0).abs() < 0.03,
-                "b {b} depth {depth}: GPU {gpu_w} vs moments {model_w}"
-            );
-        }
-        // Against the Monte Carlo light the target is 15 %; it holds at 32 voxels for every b
-        // (measured 0.98–1.04). Elsewhere the model's own limits show (measured 0.71–1.30):
-        // near the entry (GPU 22–29 % narrower at 16 voxels) the Monte Carlo's net flux at the
-        // first plane has a negative mean r² (−5.6 to −32 voxels²: the slab's diffuse
-        // reflection crossing it backward at large radii), and its forward light holds light
-        // that has turned back and forth and light crossing steeply (offsets growing as tan θ
-        // per unit depth, the moments' as sin θ), which forward-only spread moments do not
-        // have (docs/accuracy.md); deep in, the Monte Carlo light's wide wings leave the
-        // 30-voxel window (its power there falls to 0.40–0.75 against the GPU's 0.74–0.91),
-        // which narrows or widens the windowed moments differently. 0.35 bounds those.
+        // The GPU follows the moment equations it implements, second and fourth moment: its
+        // windowed width is the model cloud's within 0.7–2.1 % where the light stays well
+        // inside the 30-voxel window (depths 16 and 32: 3 % bounds the deposit's rounding and
+        // the f16 beam state) and within 1.8–4.2 % at 48 voxels, where the wings reach the
+        // window's edge and the shapes the model takes as Gaussians (the deposit's levels,
+        // tents; the hole, a disc) weigh in: 6 %. A Gaussian cloud of the same variance (no
+        // fourth moment) is 19 % wider than the model at b = 0.05 and 48 voxels.
+        let bound = if depth < 40.0 { 0.03 } else { 0.06 };
+        assert!(
+            (gpu_w / model_w - 1.0).abs() < bound,
+            "b {b} depth {depth}: GPU {gpu_w} vs moments {model_w}"
+        );
+        // Against the Monte Carlo light the target is 15 %; it holds at 32 and 48 voxels for
+        // every b (measured 0.97–1.08). Near the entry the model's own limits show (GPU
+        // 23–29 % narrower at 16 voxels): the Monte Carlo's net flux at the first plane has a
+        // negative mean r² (−5.6 to −32 voxels²: the slab's diffuse reflection crossing it
+        // backward at large radii), and its forward light holds light that has turned back
+        // and forth and light crossing steeply (offsets growing as tan θ per unit depth, the
+        // moments' as sin θ), which forward-only spread moments do not have
+        // (docs/accuracy.md). 0.35 bounds those.
         let ratio = gpu_w / mc_w;
-        let bound = if (depth - 32.0).abs() < 1.0 { 0.15 } else { 0.35 };
+        let bound = if depth > 24.0 { 0.15 } else { 0.35 };
         assert!(
             (ratio - 1.0).abs() < bound,
             "b {b} depth {depth}: GPU {gpu_w} vs MC {mc_w}"

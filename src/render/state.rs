@@ -56,6 +56,9 @@ fn light_list_slot(parity: u32, offset: u32, list: u32) -> u64 {
 /// refracted beams' deposits (rgb): eight planes up to 512², four at the viewer's full level
 /// (644×768), one at 1024².
 const VIEW_RING_BYTES: u64 = 48 << 20;
+/// The spread mode's texels per beam in each half of `beam_scatter` (`SCATTER_LAYERS` in
+/// beams.wgsl).
+const SCATTER_LAYERS: u32 = 5;
 /// Largest workgroup count along one dispatch axis that every Vulkan device accepts.
 const MAX_GROUPS_PER_ROW: u32 = 65535;
 /// Planes of light kept at once (the ring of `sweep.wgsl`) where each view pass reads one; the
@@ -456,7 +459,7 @@ impl State {
         // depth and plane in the two halves, and with refraction position and v.xy. Their power
         // by region: the two halves, and each beam's power on the planes before (the view reads
         // the unrefracted beams'; refracted ones deposit theirs a voxel back), f16 rgb in one
-        // layer each or f32 in two. The spread mode's three texels per beam and half. The view
+        // layer each or f32 in two. The spread mode's five texels per beam and half. The view
         // rays' aux and (with refraction) position and direction; their colour, light and (with
         // the medium) its transmittance, f16 in one layer each or f32 in two.
         let regions = if refraction && layout.back_planes == 1 {
@@ -471,7 +474,7 @@ impl State {
         let image_specs: [(&str, vk::Format, [u32; 2], u32, bool); 5] = [
             ("beam_state", rgba32f, grid, if refraction { 4 } else { 2 }, beams),
             ("beam_power", rg32u, grid, regions * words, beams),
-            ("beam_scatter", rgba32f, grid, 6, features.scatter),
+            ("beam_scatter", rgba32f, grid, 2 * SCATTER_LAYERS, features.scatter),
             ("view_rays", rgba32f, pixels_2d, if refraction { 2 } else { 1 }, true),
             (
                 "view_shade",

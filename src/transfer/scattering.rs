@@ -234,6 +234,15 @@ impl SpreadMoments {
         0.5 * self.r2
     }
 
+    /// The scattered light's cloud across the beam as the spread mode deposits it: two
+    /// Gaussians about the same centre with this second and fourth moment ([`core_and_wings`]
+    /// of [`SpreadMoments::scattered_kurtosis`]), as (share, variance per axis) pairs.
+    pub fn scattered_cloud(&self) -> [(f64, f64); 2] {
+        let frac = 1.0 - (-self.scattering_depth).exp();
+        let variance = if frac > 0.0 { 0.5 * self.r2 / frac } else { 0.0 };
+        core_and_wings(self.scattered_kurtosis()).map(|(share, factor)| (share, factor * variance))
+    }
+
     /// The kurtosis across the beam of the light that has scattered, E[|r⊥|⁴] / (2E[|r⊥|²]²)
     /// over it (the unscattered light is on the beam): 1 for a Gaussian cloud, more where a
     /// narrow core and wide wings hold the same variance. 1 before anything has scattered.
@@ -244,6 +253,28 @@ impl SpreadMoments {
         }
         self.r4 * frac / (2.0 * self.r2 * self.r2)
     }
+}
+
+/// The share of the light that forms the core of a cloud split into a core and wings, at
+/// least: at kurtosis κ ≤ 1/(1 − f) the core is a Gaussian of its own; beyond, its variance
+/// would have to be negative, and the core is taken the larger (a point at most).
+pub const CLOUD_CORE_SHARE: f64 = 0.5;
+
+/// Two Gaussians about one centre, as (share, variance) pairs with the variance relative to
+/// their mixture's, whose mixture has variance 1 and kurtosis `kurtosis` (E[|r|⁴] / (2E[|r|²]²)
+/// in the plane, 1 for one Gaussian): a core of share f at variance 1 − √((κ − 1)(1 − f)/f)
+/// and wings of the rest at 1 + √((κ − 1)f/(1 − f)), f = max(CLOUD_CORE_SHARE, 1 − 1/κ). A
+/// mixture of Gaussians about one centre cannot be flatter than one Gaussian: at κ ≤ 1 both
+/// parts are that Gaussian. `spread_cloud_parts` in shaders/beams.wgsl mirrors this.
+pub fn core_and_wings(kurtosis: f64) -> [(f64, f64); 2] {
+    let excess = kurtosis - 1.0;
+    if excess.is_nan() || excess <= 0.0 {
+        return [(CLOUD_CORE_SHARE, 1.0), (1.0 - CLOUD_CORE_SHARE, 1.0)];
+    }
+    let f = CLOUD_CORE_SHARE.max(1.0 - 1.0 / kurtosis);
+    let core = (1.0 - (excess * (1.0 - f) / f).sqrt()).max(0.0);
+    let wings = (1.0 - f * core) / (1.0 - f);
+    [(f, core), (1.0 - f, wings)]
 }
 
 /// Φ(−x), the normal distribution's tail beyond x: Bowling et al. 2009's logistic fit to the
@@ -329,6 +360,38 @@ mod tests {
             assert!(slant > head_on && head_on >= previous, "{path}: {head_on} {slant}");
             previous = head_on;
         }
+    }
+
+    #[test]
+    fn the_core_and_wings_keep_the_cloud_s_variance_and_give_its_kurtosis() {
+        // Per axis a Gaussian of variance v has E[x²] = v and E[x⁴] = 3v²; in the plane
+        // E[|r|²] = 2v and E[|r|⁴] = 8v², so the mixture's kurtosis is Σ s·v² / (Σ s·v)².
+        // Exact algebra: bound 1e-12 (rounding).
+        for kurtosis in [1.0, 1.13, 1.5, 2.0, 2.8, 3.8, 10.0] {
+            let parts = core_and_wings(kurtosis);
+            let share: f64 = parts.iter().map(|p| p.0).sum();
+            let second: f64 = parts.iter().map(|p| p.0 * p.1).sum();
+            let fourth: f64 = parts.iter().map(|p| p.0 * p.1 * p.1).sum();
+            assert!((share - 1.0).abs() < 1e-12, "κ {kurtosis}: shares {share}");
+            assert!((second - 1.0).abs() < 1e-12, "κ {kurtosis}: variance {second}");
+            assert!(
+                (fourth / (second * second) - kurtosis).abs() < 1e-12 * kurtosis,
+                "κ {kurtosis}: {fourth}"
+            );
+            assert!(parts.iter().all(|p| p.1 >= 0.0), "κ {kurtosis}: {parts:?}");
+        }
+        // Flatter than a Gaussian is out of reach of a mixture about one centre: one Gaussian.
+        assert_eq!(core_and_wings(0.84), [(0.5, 1.0), (0.5, 1.0)]);
+        assert_eq!(core_and_wings(f64::NAN), [(0.5, 1.0), (0.5, 1.0)]);
+        // The narrow beam's cloud (b = 0.05 /voxel, g = 0.9, 48 voxels) has wide wings.
+        let mut m = SpreadMoments::default();
+        m.step(0.05, 0.9, 48.0);
+        let [core, wings] = m.scattered_cloud();
+        assert!(
+            m.scattered_kurtosis() > 1.5 && wings.1 > 2.0 * core.1,
+            "{:?}",
+            m.scattered_cloud()
+        );
     }
 
     #[test]
