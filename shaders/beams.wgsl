@@ -1543,6 +1543,98 @@ fn spread_behind(m: vec4<f32>, w: f32, e: vec4<f32>, frac: f32) -> f32 {
     return normal_tail(depth / sqrt(var_n));
 }
 
+// Light that leaves through the medium's sides. Free transport spreads a beam's cloud as if
+// the medium went on around it; where it ends across the beam, what reaches the edge leaves
+// (a convex medium does not take it back) and what stays is thinned next to the edge, as a
+// diffusion's light is next to a boundary that absorbs it (the method of images). The cloud
+// is taken as its Gaussian cut where the medium ends along the two axes across the light
+// (the edge's distance found by a few samples along each of the four directions, up to 2.5
+// standard deviations); what lies beyond leaves, as through the lit face, and what stays is
+// deposited with the cut Gaussian's mean and variance: moved away from the edge and
+// narrowed. Only while the cloud's centre is in the medium: once it has left through the
+// far face, the cloud is light on its way out and goes on as it is. The data's own box is not
+// an edge: a medium that reaches it (a slab, tissue the scan cut) goes on beyond it here.
+
+// Whether the particles at p scatter: the value, taken within the data's box, is nearer to
+// table entries where opacity and albedo are above 0 than to others
+// (`transfer::scattering::scattering_table`).
+fn scatters_at(p: vec3<f32>) -> bool {
+    let c = clamp(volume_coord(p), 0.5 * P.texel.xyz, vec3<f32>(1.0) - 0.5 * P.texel.xyz);
+    let v = textureSampleLevel(volume_tex, volume_sampler, c, 0.0).r;
+    let n = arrayLength(&scatter_table);
+    let t = clamp(v, 0.0, 1.0) * f32(n - 1u);
+    let i = min(u32(t), n - 2u);
+    return mix(scatter_table[i].z, scatter_table[i + 1u].z, t - f32(i)) > 0.5;
+}
+
+// Distances (in standard deviations) along a direction at which the medium's edge is looked
+// for; beyond the last there is taken to be none.
+const EDGE_STEPS: array<f32, 4> = array<f32, 4>(0.5, 1.0, 1.5, 2.5);
+const NO_EDGE: f32 = 8.0;
+
+// The distance, in standard deviations sigma, from `centre` along `dir` to where the
+// scattering medium ends: halfway between the last step inside and the first outside (the
+// steps scaled by `jitter`), or NO_EDGE where the last step is inside (tested first: deep
+// in a medium one sample per direction; a gap narrower than the steps goes unseen). The
+// steps' scale is dithered per beam and plane: a distance that jumped from beam to beam by a
+// step's width would draw contours in the light they deposit, where dithered it is noise
+// that the overlapping clouds average out.
+fn edge_distance(centre: vec3<f32>, dir: vec3<f32>, sigma: f32, jitter: f32) -> f32 {
+    if (scatters_at(centre + dir * (EDGE_STEPS[3] * jitter * sigma))) {
+        return NO_EDGE;
+    }
+    var inside = 0.0;
+    for (var j = 0u; j < 3u; j++) {
+        let t = EDGE_STEPS[j] * jitter;
+        if (!scatters_at(centre + dir * (t * sigma))) {
+            return 0.5 * (inside + t);
+        }
+        inside = t;
+    }
+    return 0.5 * (inside + EDGE_STEPS[3] * jitter);
+}
+
+// The unit normal distribution restricted to [lo, hi]: its mass, mean and variance.
+fn cut_normal(lo: f32, hi: f32) -> vec3<f32> {
+    let mass = max(normal_tail(-hi) - normal_tail(-lo), 1e-6);
+    let pdf_lo = 0.39894228 * exp(-0.5 * lo * lo);
+    let pdf_hi = 0.39894228 * exp(-0.5 * hi * hi);
+    let mean = (pdf_lo - pdf_hi) / mass;
+    let variance = max(1.0 + (lo * pdf_lo - hi * pdf_hi) / mass - mean * mean, 0.0);
+    return vec3<f32>(mass, mean, variance);
+}
+
+// A cloud about `centre` with variance sigma² per axis across the light, cut where the
+// medium ends along each axis: the share of it within the medium, that part's variance
+// relative to sigma² (the mean over the two axes) and its mean's shift.
+struct CutCloud {
+    kept: f32,
+    variance: f32,
+    shift: vec3<f32>,
+}
+
+fn cut_cloud(centre: vec3<f32>, sigma: f32, jitter: f32) -> CutCloud {
+    var cloud = CutCloud(1.0, 1.0, vec3<f32>(0.0));
+    let d = P.light_dir.xyz;
+    // Two axes across the light.
+    var e1 = cross(d, vec3<f32>(0.0, 1.0, 0.0));
+    if (dot(e1, e1) < 1e-6) {
+        e1 = cross(d, vec3<f32>(1.0, 0.0, 0.0));
+    }
+    e1 = normalize(e1);
+    let e2 = cross(d, e1);
+    var variance = 0.0;
+    for (var a = 0u; a < 2u; a++) {
+        let axis = select(e1, e2, a == 1u);
+        let cut = cut_normal(-edge_distance(centre, -axis, sigma, jitter), edge_distance(centre, axis, sigma, jitter));
+        cloud.kept *= cut.x;
+        cloud.shift += axis * (cut.y * sigma);
+        variance += 0.5 * cut.z;
+    }
+    cloud.variance = variance;
+    return cloud;
+}
+
 // One segment of the spread mode for beam `index`, whose unscattered power went from
 // `u_before` to b.power over the segment from x0 to b.pos (front value `value_front`, back
 // value b.value); deposits its scattered light on plane k. du, dv: the beam's cell.
@@ -1576,8 +1668,18 @@ fn spread_step(ij: vec2<u32>, index: u32, k: u32, b: Beam, u_before: vec3<f32>, 
     let p1 = exp(-(1.0 - sc.y) * m_before.w);
     let lag = a.w + l * (1.0 - p1 * spread_mean_exp(y1));
     let frac = m.w * spread_mean_exp(m.w);
+    // The scattered light's own spread per axis: R is that of all the light, whose
+    // unscattered part 1 − (1 − e^−∫b) stays on the axis. Its centroid lags behind the beam
+    // by lag / (1 − e^−∫b) (the unscattered part is on the beam).
+    let spread = 0.5 * m.z / max(frac, 1e-12);
+    let behind = lag / max(frac, 1e-12);
+    var centre = b.pos - P.light_dir.xyz * behind;
     var e = e_before;
     var left = 0.0;
+    // The share of the cloud beyond the medium's sides so far (`cut_cloud`).
+    let outside_before = gf_before.z;
+    var outside = outside_before;
+    var narrowing = 1.0;
     if (m.w > 0.0) {
         e = spread_entry(e_before, m_before, a.w, lag, p1, albedo * tau, sc.y, l);
         if (m_before.w <= 0.0) {
@@ -1588,6 +1690,17 @@ fn spread_step(ij: vec2<u32>, index: u32, k: u32, b: Beam, u_before: vec3<f32>, 
         let behind_before = spread_behind(m_before, a.w, e_before, m_before.w * spread_mean_exp(m_before.w));
         let behind_now = spread_behind(m, lag, e, frac);
         left = max(behind_now - behind_before, 0.0) / max(1.0 - behind_before, 1e-6);
+        // What reached beyond the sides since the last plane leaves too; the rest is
+        // deposited as the cut cloud.
+        if (frac > 1e-6 && scatters_at(centre)) {
+            // Step scales from 0.75 to 1.25 (`edge_distance`).
+            let jitter = 0.75 + 0.5 * f32(hash(index ^ hash(k ^ 0x68e31da4u)) & 0xffffu) / 65536.0;
+            let cut = cut_cloud(centre, sqrt(spread), jitter);
+            outside = max(1.0 - cut.kept, outside_before);
+            left = 1.0 - (1.0 - left) * (1.0 - (outside - outside_before) / max(1.0 - outside_before, 1e-6));
+            centre += cut.shift;
+            narrowing = cut.variance;
+        }
     }
     // Scattered light goes on losing only what is absorbed: (1 − ω) of the extinction, and
     // the medium; the unscattered light gives it ω of what the particles took.
@@ -1596,19 +1709,12 @@ fn spread_step(ij: vec2<u32>, index: u32, k: u32, b: Beam, u_before: vec3<f32>, 
     textureStore(beam_scatter, t, write + 1, m);
     textureStore(beam_scatter, t, write + 2, e);
     textureStore(beam_scatter, t, write + 3, vec4<f32>(fourth.q4, fourth.m, fourth.h, fourth.k));
-    textureStore(beam_scatter, t, write + 4, vec4<f32>(fourth.g, fourth.f, 0.0, 0.0));
+    textureStore(beam_scatter, t, write + 4, vec4<f32>(fourth.g, fourth.f, outside, 0.0));
     if (max(scattered.r, max(scattered.g, scattered.b)) <= 0.0) {
         return;
     }
-    // The scattered light's own spread: R is that of all the light, whose unscattered part
-    // 1 − (1 − e^−∫b) stays on the axis.
-    let spread = 0.5 * m.z / max(frac, 1e-12);
-    // In pixels² on this plane (a pixel's side there: sqrt(pixel_area)), plus the cell's own
-    // box footprint.
-    // The scattered light's centroid lags behind the beam by lag / (1 − e^−∫b) (the
-    // unscattered part is on the beam): deposited there, seen along the view axis.
-    let behind = lag / max(frac, 1e-12);
-    let centre = b.pos - P.light_dir.xyz * behind;
+    // Deposited at the centroid seen along the view axis, with the spread in pixels² on this
+    // plane (a pixel's side there: sqrt(pixel_area)) plus the cell's own box footprint.
     let c = project(vec3<f32>(centre.xy, b.pos.z)) + vec2<f32>(0.5);
     let pu = project(b.pos + du) - project(b.pos);
     let pv = project(b.pos + dv) - project(b.pos);
@@ -1619,7 +1725,7 @@ fn spread_step(ij: vec2<u32>, index: u32, k: u32, b: Beam, u_before: vec3<f32>, 
     let parts = spread_cloud_parts(kurtosis);
     let amount = scattered * deposit_scale(b.pos.z, P.light_dir.xyz);
     let seed = hash(index ^ hash(k ^ 0x27d4eb2fu));
-    let v = spread / pixel_area(b.pos.z);
+    let v = narrowing * spread / pixel_area(b.pos.z);
     if (parts.y == parts.w) {
         deposit_cloud(deposit_slot(k), c, v + cell, amount, seed);
     } else {

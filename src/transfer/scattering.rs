@@ -284,12 +284,16 @@ fn normal_tail(x: f64) -> f64 {
 }
 
 /// The GPU's scattering table: per data value (TABLE_SIZE entries over [0, 1], the same
-/// lattice as the pre-integration tables) the albedo ω, the anisotropy g, and two zeros.
+/// lattice as the pre-integration tables) the albedo ω, the anisotropy g, 1 where the
+/// particles scatter (opacity and ω above 0; where the spread mode's cloud finds the
+/// medium's edge, `scatters_at` in shaders/beams.wgsl) else 0, and a zero.
 pub fn scattering_table(tf: &TransferFunctions) -> Vec<[f32; 4]> {
     (0..TABLE_SIZE)
         .map(|i| {
             let x = i as f32 / (TABLE_SIZE - 1) as f32;
-            [tf.albedo_at(x), tf.anisotropy_at(x), 0.0, 0.0]
+            let albedo = tf.albedo_at(x);
+            let scatters = albedo > 0.0 && tf.opacity.eval(x) > 0.0;
+            [albedo, tf.anisotropy_at(x), if scatters { 1.0 } else { 0.0 }, 0.0]
         })
         .collect()
 }
@@ -404,7 +408,11 @@ mod tests {
         tf.anisotropy = Some(crate::transfer::Curve::constant(0.6));
         let t = scattering_table(&tf);
         assert_eq!(t.len(), TABLE_SIZE);
-        assert_eq!(t[TABLE_SIZE - 1], [1.0, 0.6, 0.0, 0.0]);
+        assert_eq!(t[TABLE_SIZE - 1], [1.0, 0.6, 1.0, 0.0]);
         assert!((t[TABLE_SIZE / 2][0] - 0.5).abs() < 1.0 / TABLE_SIZE as f32);
+        // Where ω is 0 (x = 0) or there are no particles, nothing scatters.
+        assert_eq!(t[0][2], 0.0);
+        tf.opacity = crate::transfer::Curve::constant(0.0);
+        assert!(scattering_table(&tf).iter().all(|e| e[2] == 0.0));
     }
 }
