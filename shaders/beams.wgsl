@@ -1268,11 +1268,17 @@ fn outside_fraction(q: vec2<f32>, r: vec4<f32>) -> f32 {
 
 // ω (x) and g (y) at data value v, linear between the table's entries.
 fn scatter_coefficients(v: f32) -> vec2<f32> {
+    return scatter_entry(v).xy;
+}
+
+// The scattering table's entry at data value v, linear between its entries
+// (`transfer::scattering::scattering_table`).
+fn scatter_entry(v: f32) -> vec4<f32> {
     let n = arrayLength(&scatter_table);
     let t = clamp(v, 0.0, 1.0) * f32(n - 1u);
     let i = min(u32(t), n - 2u);
     let f = t - f32(i);
-    return mix(scatter_table[i].xy, scatter_table[i + 1u].xy, f);
+    return mix(scatter_table[i], scatter_table[i + 1u], f);
 }
 
 // (1 − e^−x) / x, 1 at 0: the mean of e^−u over u in [0, x] (x may be negative).
@@ -1398,11 +1404,11 @@ fn relaxation(k: vec3<f32>, t: f32) -> Relaxation {
     return r;
 }
 
-// y advanced by the relaxation r with the rates at `at` held (1 − P₂ = q, 1 − P₄ = q4
-// there); k = (k₁, k₂, k₃).
-fn fourth_relaxed(y: Fourth, at: Fourth, q: f32, q4: f32, k: vec3<f32>, r: Relaxation, t: f32) -> Fourth {
-    let sine2 = (2.0 / 3.0) * q;
-    let sine4 = (8.0 / 15.0) * (1.0 - (10.0 / 7.0) * (1.0 - q) + (3.0 / 7.0) * (1.0 - q4));
+// y advanced by the relaxation r with the rates at `at` held (P₂ and P₄ there); k = (k₁, k₂,
+// k₃).
+fn fourth_relaxed(y: Fourth, at: Fourth, p2: f32, p4: f32, k: vec3<f32>, r: Relaxation, t: f32) -> Fourth {
+    let sine2 = (2.0 / 3.0) * (1.0 - p2);
+    let sine4 = (8.0 / 15.0) * (1.0 - (10.0 / 7.0) * p2 + (3.0 / 7.0) * p4);
     var o = y;
     o.c = y.c * r.e.x + sine2 * r.w.x;
     o.r = y.r + 2.0 * at.c * t;
@@ -1436,10 +1442,10 @@ fn spread_fourth(y0: Fourth, q0: f32, bh: f32, g: f32, h: f32) -> Fourth {
     var p4 = 1.0 - y0.q4;
     let e4 = exp(-0.5 * k4 * dt);
     for (var i = 0u; i < n; i++) {
-        let mid = fourth_relaxed(y, y, 1.0 - p2, 1.0 - p4, k, half_step, 0.5 * dt);
+        let mid = fourth_relaxed(y, y, p2, p4, k, half_step, 0.5 * dt);
         p2 *= half_step.e.y;
         p4 *= e4;
-        y = fourth_relaxed(y, mid, 1.0 - p2, 1.0 - p4, k, whole, dt);
+        y = fourth_relaxed(y, mid, p2, p4, k, whole, dt);
         p2 *= half_step.e.y;
         p4 *= e4;
     }
@@ -1560,11 +1566,7 @@ fn spread_behind(m: vec4<f32>, w: f32, e: vec4<f32>, frac: f32) -> f32 {
 // (`transfer::scattering::scattering_table`).
 fn scatters_at(p: vec3<f32>) -> bool {
     let c = clamp(volume_coord(p), 0.5 * P.texel.xyz, vec3<f32>(1.0) - 0.5 * P.texel.xyz);
-    let v = textureSampleLevel(volume_tex, volume_sampler, c, 0.0).r;
-    let n = arrayLength(&scatter_table);
-    let t = clamp(v, 0.0, 1.0) * f32(n - 1u);
-    let i = min(u32(t), n - 2u);
-    return mix(scatter_table[i].z, scatter_table[i + 1u].z, t - f32(i)) > 0.5;
+    return scatter_entry(textureSampleLevel(volume_tex, volume_sampler, c, 0.0).r).z > 0.5;
 }
 
 // Distances (in standard deviations) along a direction at which the medium's edge is looked

@@ -213,7 +213,7 @@ impl SpreadMoments {
     /// what comes to lie there leave (`spread_behind` in shaders/beams.wgsl, which this
     /// mirrors, with the same fit of the normal distribution's tail).
     pub fn behind_entry(&self, path: f64, cos_entry: f64) -> f64 {
-        let frac = 1.0 - (-self.scattering_depth).exp();
+        let frac = self.scattered_fraction();
         if frac < 1e-6 {
             return 0.0;
         }
@@ -229,6 +229,11 @@ impl SpreadMoments {
         normal_tail(depth / var_n.sqrt())
     }
 
+    /// The share of the light that has scattered, 1 − e^(−∫b ds) (the rest is on the beam).
+    fn scattered_fraction(&self) -> f64 {
+        1.0 - (-self.scattering_depth).exp()
+    }
+
     /// Variance of the light's position per axis about the beam.
     pub fn variance_per_axis(&self) -> f64 {
         0.5 * self.r2
@@ -238,7 +243,7 @@ impl SpreadMoments {
     /// Gaussians about the same centre with this second and fourth moment ([`core_and_wings`]
     /// of [`SpreadMoments::scattered_kurtosis`]), as (share, variance per axis) pairs.
     pub fn scattered_cloud(&self) -> [(f64, f64); 2] {
-        let frac = 1.0 - (-self.scattering_depth).exp();
+        let frac = self.scattered_fraction();
         let variance = if frac > 0.0 { 0.5 * self.r2 / frac } else { 0.0 };
         core_and_wings(self.scattered_kurtosis()).map(|(share, factor)| (share, factor * variance))
     }
@@ -247,7 +252,7 @@ impl SpreadMoments {
     /// over it (the unscattered light is on the beam): 1 for a Gaussian cloud, more where a
     /// narrow core and wide wings hold the same variance. 1 before anything has scattered.
     pub fn scattered_kurtosis(&self) -> f64 {
-        let frac = 1.0 - (-self.scattering_depth).exp();
+        let frac = self.scattered_fraction();
         if frac < 1e-12 || self.r2 <= 0.0 {
             return 1.0;
         }
