@@ -394,8 +394,8 @@ mod tests {
         assert_eq!(core_and_wings(f64::NAN), [(0.5, 1.0), (0.5, 1.0)]);
         // The narrow beam's cloud (b = 0.05 /voxel, g = 0.9, 48 voxels) has wide wings: κ is
         // 1.83 there (the recurrence), which puts half the light at 0.09 of the variance and
-        // half at 1.91; the bounds (κ > 1.5, wings over twice the core) hold for any κ from
-        // 1.13 on at a core share of ½ and fail for a Gaussian cloud.
+        // half at 1.91. The bounds (κ > 1.5, wings over twice the core) hold with that margin
+        // and fail for a Gaussian cloud (κ 1, both parts alike).
         let mut m = SpreadMoments::default();
         m.step(0.05, 0.9, 48.0);
         let [core, wings] = m.scattered_cloud();
