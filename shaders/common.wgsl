@@ -135,7 +135,7 @@ var<private> P: Params;
 // (`layer_ratio`).
 @group(0) @binding(7) var orientation_tex: texture_3d<f32>;
 @group(0) @binding(5) var particle_table: texture_2d<f32>;   // rgb: premultiplied colour, a: τ_α
-@group(0) @binding(6) var medium_table: texture_2d<f32>;     // rgb: τ_m
+@group(0) @binding(6) var medium_table: texture_2d<f32>;     // rgb: τ_m, a: τ_α
 @group(0) @binding(8) var env_tex: texture_2d<f32>;
 @group(0) @binding(9) var env_sampler: sampler;
 
@@ -604,14 +604,19 @@ fn split_medium(a: f32, split: vec2<f32>, b: f32, ratio: f32) -> vec3<f32> {
     return segment_medium(a, split.y, ratio * split.x) * segment_medium(split.y, b, ratio * (1.0 - split.x));
 }
 
-// What a segment from value a through m (halfway) to b lets through: (1 − α)·m (Eq. 9).
+// What a segment from value a through m (halfway) to b lets through: (1 − α)·m (Eq. 9), the
+// particles' and the medium's optical depths summed from one lookup per part (the medium
+// table holds τ_α beside τ_m), as `split_particles` and `split_medium` would give them.
 fn segment_transmittance(a: f32, m: f32, b: f32, ratio: f32, clipped: bool) -> vec3<f32> {
     let split = segment_split(a, m, b);
-    var t = vec3<f32>(1.0 - split_particles(a, split, b, ratio, clipped).a);
+    let front = textureSampleLevel(medium_table, linear_clamp, table_uv(a, split.y), 0.0);
+    let back = textureSampleLevel(medium_table, linear_clamp, table_uv(split.y, b), 0.0);
+    let w = vec2<f32>(split.x, 1.0 - split.x) * ratio;
+    var tau = vec3<f32>(select(front.a * w.x + back.a * w.y, 0.0, clipped));
     if (MEDIUM) {
-        t *= split_medium(a, split, b, ratio);
+        tau += front.rgb * w.x + back.rgb * w.y;
     }
-    return t;
+    return exp(-tau);
 }
 
 fn table_uv(a: f32, b: f32) -> vec2<f32> {

@@ -29,7 +29,9 @@ const CELL_SAMPLES: usize = 8;
 pub struct PreintegratedTables {
     /// rgb: particle colour premultiplied by the segment opacity; a: opacity optical depth τ_α.
     pub particle: Vec<[f32; 4]>,
-    /// rgb: medium optical depth τ_m per channel; a: unused (0).
+    /// rgb: medium optical depth τ_m per channel; a: τ_α again, so that one lookup gives a
+    /// segment's whole transmittance (particles and medium), which the light needs and the
+    /// view's light line: half the lookups of reading both tables.
     pub medium: Vec<[f32; 4]>,
     pub sample_distance: f32,
 }
@@ -140,7 +142,7 @@ pub fn preintegrate(tf: &TransferFunctions, sample_distance: f32) -> Preintegrat
             c.tau_a * sample_distance,
         ];
         let m = c.tau_m.map(|t| t * sample_distance);
-        medium[f * n + f] = [m[0], m[1], m[2], 0.0];
+        medium[f * n + f] = [m[0], m[1], m[2], c.tau_a * sample_distance];
     }
     // Row = back value b, column = front f.
     for (d, (up, down)) in (1..n).zip(diagonals) {
@@ -194,11 +196,11 @@ impl Segment {
     }
 
     /// The particle and medium table texels: colour premultiplied by the segment's opacity
-    /// and τ_α; τ_m per channel.
+    /// and τ_α; τ_m per channel and τ_α.
     fn texels(&self) -> ([f32; 4], [f32; 4]) {
         let [r, g, b] = self.rgb.map(|x| x as f32);
         let [mr, mg, mb] = self.medium.map(|x| x as f32);
-        ([r, g, b, self.tau as f32], [mr, mg, mb, 0.0])
+        ([r, g, b, self.tau as f32], [mr, mg, mb, self.tau as f32])
     }
 }
 
@@ -299,7 +301,7 @@ mod tests {
                     tau += f64::from(c.tau_a) * dl;
                 }
                 particle[b * n + f] = [rgb[0] as f32, rgb[1] as f32, rgb[2] as f32, tau as f32];
-                medium[b * n + f] = [m[0] as f32, m[1] as f32, m[2] as f32, 0.0];
+                medium[b * n + f] = [m[0] as f32, m[1] as f32, m[2] as f32, tau as f32];
             }
         }
         PreintegratedTables {
@@ -376,6 +378,23 @@ mod tests {
             assert!((e[0] - (1.0 - 0.7f32.powf(d))).abs() < 1e-4, "{e:?}");
             let m = PreintegratedTables::lookup(&t.medium, 0.1, 0.9);
             assert!(((-m[0]).exp() - 0.9f32.powf(d)).abs() < 1e-5);
+        }
+    }
+
+    #[test]
+    fn the_medium_table_carries_the_particles_optical_depth() {
+        // `segment_transmittance` (common.wgsl) reads a segment's whole transmittance from the
+        // medium table alone: its alpha must be the particle table's τ_α at every entry.
+        let mut curves = tf(0.3, 0.9);
+        curves.opacity = Curve {
+            points: vec![[0.0, 0.0], [0.5, 0.9], [1.0, 0.2]],
+        };
+        for length in [0.25f32, 1.0] {
+            let t = preintegrate(&curves, length);
+            assert!(t.particle.iter().any(|p| p[3] > 0.0));
+            for (i, (p, m)) in t.particle.iter().zip(&t.medium).enumerate() {
+                assert_eq!(p[3].to_bits(), m[3].to_bits(), "entry {i} at Δs {length}");
+            }
         }
     }
 
