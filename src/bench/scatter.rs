@@ -64,6 +64,7 @@ pub fn run(ctx: Arc<Context>, plan: &ScatterPlan, out: &Path, progress: bool) ->
     let rows = scatter_modes::run(ctx, &plan.modes, progress)?;
     let mut md = premoze_tables(plan.premoze_photons);
     md.push_str(&scatter_modes::markdown(&rows, &plan.modes, &device));
+    md.push_str(&scatter_modes::crossing_orders(&plan.modes));
     let markdown = out.join("scatter.md");
     let csv = out.join("scatter.csv");
     let plot_path = out.join("scatter.png");

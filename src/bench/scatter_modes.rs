@@ -11,7 +11,7 @@ use glam::Vec2;
 
 use crate::gpu::Context;
 use crate::reference::measure::ScalarImage;
-use crate::reference::scatter::{plane_flux_rings, PlaneFlux};
+use crate::reference::scatter::{first_crossings_by_order, plane_flux_rings, PlaneFlux};
 use crate::render::lbm::LbmStats;
 use crate::render::{DebugView, RenderRequest, Renderer};
 use crate::scene::{MultipleScattering, Quality};
@@ -458,6 +458,48 @@ pub fn markdown(rows: &[ModeRow], plan: &ModesPlan, device: &str) -> String {
             s.gpu_ms,
             lattice.join("; ")
         );
+    }
+    md
+}
+
+/// What carries the Monte Carlo light's mean r² on the shallowest measured plane (the second
+/// depth of `plan`): the light that first crosses it (a pencil beam, forward crossings within
+/// the window), by how often it scattered on its way (0, 1, 2, 3 or more), and how much of its
+/// mean r² each order holds. Light that scattered several times has gone further than the
+/// depth, which path-length moments do not follow.
+pub fn crossing_orders(plan: &ModesPlan) -> String {
+    let mut md = String::new();
+    let Some(&wanted) = plan.depths.get(1) else {
+        return md;
+    };
+    let depth = f64::from(wanted - ENTRY);
+    let _ = writeln!(
+        md,
+        "\nWhat carries the Monte Carlo light's mean r² at {depth:.0} voxels (a pencil beam, {} photons per b, \
+         each photon where it first crosses the plane within {} voxels of the axis, by its scatterings so far; \
+         `reference::scatter::first_crossings_by_order`):\n\n\
+         | b /voxel | order | share of that light | share of its mean r² | mean path so far (voxels) |\n|---|---|---|---|---|",
+        plan.photons, plan.max_r
+    );
+    for &b in &plan.scattering {
+        let slab = slab::reference_slab(plan.absorption, b, plan.g);
+        let orders = first_crossings_by_order(&slab, depth, f64::from(plan.max_r), 4, plan.photons, 17);
+        let light: f64 = orders.iter().map(|o| o.share).sum();
+        let r2: f64 = orders.iter().map(|o| o.r2).sum();
+        for o in &orders {
+            let order = if o.scatterings + 1 == orders.len() {
+                format!("{} or more", o.scatterings)
+            } else {
+                o.scatterings.to_string()
+            };
+            let _ = writeln!(
+                md,
+                "| {b} | {order} | {:.3} | {:.3} | {:.1} |",
+                o.share / light.max(1e-300),
+                o.r2 / r2.max(1e-300),
+                o.path / o.share.max(1e-300)
+            );
+        }
     }
     md
 }

@@ -622,6 +622,90 @@ pub fn plane_flux_rings<M: ScatteringMedium + ?Sized + Sync>(
     (flux, profiles)
 }
 
+/// Light crossing a plane for the first time, by how often it has scattered on its way.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CrossingOrder {
+    /// Scatterings before the crossing (the last entry: that many or more).
+    pub scatterings: usize,
+    /// Share of the entering photons that first cross the plane (forward, within the window)
+    /// after this many scatterings.
+    pub share: f64,
+    /// Σ r² of those crossings over the entering photons: the mean r² of the light first
+    /// crossing the plane is Σ `r2` / Σ `share` over the orders.
+    pub r2: f64,
+    /// Σ of those photons' path lengths up to the crossing over the entering photons: their
+    /// mean path is `path` / `share` (at least the depth; the depth itself unscattered).
+    pub path: f64,
+}
+
+/// Where the forward light on the plane at `depth` comes from: a pencil beam entering
+/// `medium` along +z at the origin, each photon counted where it first crosses the plane
+/// within `max_r` of the axis, grouped by how often it had scattered (0, 1, …, `orders` − 1
+/// and more). A scattering is a change of direction between two straight pieces of the walk
+/// (a null collision does not turn the photon).
+pub fn first_crossings_by_order<M: ScatteringMedium + ?Sized + Sync>(
+    medium: &M,
+    depth: f64,
+    max_r: f64,
+    orders: usize,
+    photons: u64,
+    seed: u64,
+) -> Vec<CrossingOrder> {
+    let orders = orders.max(1);
+    let totals = run(
+        photons,
+        seed,
+        || vec![[0.0f64; 3]; orders],
+        |_, rng| {
+            let mut sums = vec![[0.0f64; 3]; orders];
+            let mut travelled = 0.0f64;
+            let mut turns = 0usize;
+            let mut last = DVec3::Z;
+            let mut crossed = false;
+            walk(medium, DVec3::ZERO, DVec3::Z, rng, |a, b| {
+                let d = (b - a).normalize_or_zero();
+                if d != DVec3::ZERO {
+                    if d.dot(last) < 1.0 - 1e-12 {
+                        turns += 1;
+                    }
+                    last = d;
+                }
+                if !crossed && a.z < depth && b.z >= depth {
+                    crossed = true;
+                    let p = a.lerp(b, (depth - a.z) / (b.z - a.z));
+                    let r2 = p.x * p.x + p.y * p.y;
+                    if r2 <= max_r * max_r {
+                        let k = turns.min(orders - 1);
+                        sums[k][0] += 1.0;
+                        sums[k][1] += r2;
+                        sums[k][2] += travelled + (p - a).length();
+                    }
+                }
+                travelled += (b - a).length();
+            });
+            sums
+        },
+        |a, b| {
+            for (x, y) in a.iter_mut().zip(b) {
+                for (p, q) in x.iter_mut().zip(y) {
+                    *p += q;
+                }
+            }
+        },
+    );
+    let n = photons.max(1) as f64;
+    totals
+        .iter()
+        .enumerate()
+        .map(|(scatterings, t)| CrossingOrder {
+            scatterings,
+            share: t[0] / n,
+            r2: t[1] / n,
+            path: t[2] / n,
+        })
+        .collect()
+}
+
 /// The part of the straight segment a→b inside z0 ≤ z ≤ z1: its length and ∫(x² + y²) dℓ.
 fn track_in_layer(a: DVec3, b: DVec3, z0: f64, z1: f64) -> Option<(f64, f64)> {
     let dz = b.z - a.z;

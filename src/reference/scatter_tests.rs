@@ -5,8 +5,8 @@
 use glam::DVec3;
 
 use super::scatter::{
-    beam_widths, path_moments, plane_flux, plane_flux_rings, run, sample_hg, slab_balance, transverse_moment, walk,
-    Centred, Coefficients, Rng, ScatteringMedium, Slab,
+    beam_widths, first_crossings_by_order, path_moments, plane_flux, plane_flux_rings, run, sample_hg, slab_balance,
+    transverse_moment, walk, Centred, Coefficients, Rng, ScatteringMedium, Slab,
 };
 use crate::transfer::scattering::hg_relative;
 
@@ -640,4 +640,41 @@ fn a_wide_beam_through_a_clear_slab_fills_its_rings_by_their_area() {
     };
     let (with_rings, _) = plane_flux_rings(&scattering, &[0.5, 1.5], 3.0, 6, 0.0, n, 5);
     assert_eq!(with_rings, plane_flux(&scattering, &[0.5, 1.5], 3.0, n, 5));
+}
+
+#[test]
+fn first_crossings_split_by_order_keep_the_unscattered_beam_on_its_axis() {
+    // A pencil beam into a forward-scattering slab: the light that first crosses the plane at
+    // depth 16 without having scattered is Beer–Lambert's e^(−σ_t z), on the axis (r² = 0);
+    // the rest has scattered and lies off it. Binomial noise of n photons: 5σ.
+    let slab = Slab {
+        thickness: 60.0,
+        half_width: 1000.0,
+        absorption: 0.002,
+        scattering: 0.1,
+        g: 0.9,
+    };
+    let n = 20_000;
+    let z = 16.0;
+    let orders = first_crossings_by_order(&slab, z, 1e9, 4, n, 5);
+    assert_eq!(orders.len(), 4);
+    let t = (-(slab.absorption + slab.scattering) * z).exp();
+    let sigma = (t * (1.0 - t) / n as f64).sqrt();
+    assert!((orders[0].share - t).abs() < 5.0 * sigma, "{orders:?} vs {t}");
+    assert_eq!(orders[0].r2, 0.0);
+    // Unscattered light has come straight: its path is the depth (to rounding); scattered
+    // light has come further.
+    assert!((orders[0].path / orders[0].share - z).abs() < 1e-9, "{orders:?}");
+    assert!(orders[1..].iter().all(|o| o.path / o.share > z), "{orders:?}");
+    assert!(orders[1..].iter().all(|o| o.share > 0.0 && o.r2 > 0.0), "{orders:?}");
+    // Every photon is counted once at most: what does not cross was absorbed or turned back.
+    let crossing: f64 = orders.iter().map(|o| o.share).sum();
+    assert!(crossing <= 1.0 && crossing > t, "{crossing}");
+    // The same photons, windowed to 2 voxels: nothing scattered far is counted, the axis is.
+    let near = first_crossings_by_order(&slab, z, 2.0, 4, n, 5);
+    assert_eq!(near[0].share, orders[0].share);
+    assert!(near
+        .iter()
+        .zip(&orders)
+        .all(|(a, b)| a.share <= b.share && a.r2 <= 4.0 * a.share + 1e-12));
 }
