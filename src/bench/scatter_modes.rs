@@ -501,6 +501,20 @@ pub fn crossing_orders(plan: &ModesPlan) -> String {
             );
         }
     }
+    let _ = writeln!(
+        md,
+        "\nHow much further than the depth the scattered light in the window has come (its mean path up to \
+         the plane, less the depth; the same walks):\n\n| b /voxel | S voxels | excess path (voxels) | of the depth |\n|---|---|---|---|"
+    );
+    for &b in &plan.scattering {
+        let slab = slab::reference_slab(plan.absorption, b, plan.g);
+        for &wanted in &plan.depths[1..] {
+            let depth = f64::from(wanted - ENTRY);
+            let orders = first_crossings_by_order(&slab, depth, f64::from(plan.max_r), 2, plan.photons, 17);
+            let excess = orders[1].path / orders[1].share.max(1e-300) - depth;
+            let _ = writeln!(md, "| {b} | {depth:.0} | {excess:.2} | {:.3} |", excess / depth);
+        }
+    }
     md
 }
 
