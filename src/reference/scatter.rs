@@ -281,6 +281,16 @@ pub fn walk<M: ScatteringMedium + ?Sized>(
     }
 }
 
+/// Adds one chunk's tallies to the sums, row by row and entry by entry (`run`'s `add` for
+/// tallies kept as rows of sums).
+fn add_tallies<R: AsRef<[f64]> + AsMut<[f64]>>(sums: &mut [R], more: Vec<R>) {
+    for (row, other) in sums.iter_mut().zip(more) {
+        for (x, y) in row.as_mut().iter_mut().zip(other.as_ref()) {
+            *x += y;
+        }
+    }
+}
+
 /// Runs `photons` walks in parallel and sums their tallies in photon order (deterministic).
 /// `one` traces photon `i` with its own generator and returns its tally; tallies add with
 /// `add` from `zero`.
@@ -593,13 +603,7 @@ pub fn plane_flux_rings<M: ScatteringMedium + ?Sized + Sync>(
                 })
                 .collect::<Vec<_>>()
         },
-        |a, b| {
-            for (x, y) in a.iter_mut().zip(b) {
-                for (p, q) in x.iter_mut().zip(y) {
-                    *p += q;
-                }
-            }
-        },
+        |a, b| add_tallies(a, b),
     );
     let np = photons.max(1) as f64;
     let profiles = totals.iter().map(|t| t[5..].iter().map(|v| v / np).collect()).collect();
@@ -685,13 +689,7 @@ pub fn first_crossings_by_order<M: ScatteringMedium + ?Sized + Sync>(
             });
             sums
         },
-        |a, b| {
-            for (x, y) in a.iter_mut().zip(b) {
-                for (p, q) in x.iter_mut().zip(y) {
-                    *p += q;
-                }
-            }
-        },
+        |a, b| add_tallies(a, b),
     );
     let n = photons.max(1) as f64;
     totals
@@ -770,13 +768,7 @@ pub fn path_moments<M: ScatteringMedium>(medium: &M, lengths: &[f64], photons: u
             });
             out
         },
-        |a, b| {
-            for (x, y) in a.iter_mut().zip(b) {
-                for k in 0..6 {
-                    x[k] += y[k];
-                }
-            }
-        },
+        |a, b| add_tallies(a, b),
     );
     lengths
         .iter()
