@@ -11,7 +11,7 @@ use glam::Vec2;
 
 use crate::gpu::Context;
 use crate::reference::measure::ScalarImage;
-use crate::reference::scatter::{first_crossings_by_order, plane_flux_rings, PlaneFlux};
+use crate::reference::scatter::{first_crossings_by_order, plane_flux_rings, CrossingOrder, PlaneFlux};
 use crate::render::lbm::LbmStats;
 use crate::render::{DebugView, RenderRequest, Renderer};
 use crate::scene::{MultipleScattering, Quality};
@@ -473,6 +473,21 @@ pub fn crossing_orders(plan: &ModesPlan) -> String {
         return md;
     };
     let depth = f64::from(wanted - ENTRY);
+    // Per b, the light on every measured plane by order, walked once: the first table splits
+    // the shallowest plane's, the second sums the scattered orders of each.
+    let depths: Vec<f64> = plan.depths[1..].iter().map(|&z| f64::from(z - ENTRY)).collect();
+    let by_b: Vec<(f32, Vec<Vec<CrossingOrder>>)> = plan
+        .scattering
+        .iter()
+        .map(|&b| {
+            let slab = slab::reference_slab(plan.absorption, b, plan.g);
+            let planes = depths
+                .iter()
+                .map(|&z| first_crossings_by_order(&slab, z, f64::from(plan.max_r), 4, plan.photons, 17))
+                .collect();
+            (b, planes)
+        })
+        .collect();
     let _ = writeln!(
         md,
         "\nWhat carries the Monte Carlo light's mean r² at {depth:.0} voxels (a pencil beam, {} photons per b, \
@@ -481,12 +496,11 @@ pub fn crossing_orders(plan: &ModesPlan) -> String {
          | b /voxel | order | share of that light | share of its mean r² | mean path so far (voxels) |\n|---|---|---|---|---|",
         plan.photons, plan.max_r
     );
-    for &b in &plan.scattering {
-        let slab = slab::reference_slab(plan.absorption, b, plan.g);
-        let orders = first_crossings_by_order(&slab, depth, f64::from(plan.max_r), 4, plan.photons, 17);
+    for (b, planes) in &by_b {
+        let orders = &planes[0];
         let light: f64 = orders.iter().map(|o| o.share).sum();
         let r2: f64 = orders.iter().map(|o| o.r2).sum();
-        for o in &orders {
+        for o in orders {
             let order = if o.scatterings + 1 == orders.len() {
                 format!("{} or more", o.scatterings)
             } else {
@@ -506,12 +520,12 @@ pub fn crossing_orders(plan: &ModesPlan) -> String {
         "\nHow much further than the depth the scattered light in the window has come (its mean path up to \
          the plane, less the depth; the same walks):\n\n| b /voxel | S voxels | excess path (voxels) | of the depth |\n|---|---|---|---|"
     );
-    for &b in &plan.scattering {
-        let slab = slab::reference_slab(plan.absorption, b, plan.g);
-        for &wanted in &plan.depths[1..] {
-            let depth = f64::from(wanted - ENTRY);
-            let orders = first_crossings_by_order(&slab, depth, f64::from(plan.max_r), 2, plan.photons, 17);
-            let excess = orders[1].path / orders[1].share.max(1e-300) - depth;
+    for (b, planes) in &by_b {
+        for (orders, &depth) in planes.iter().zip(&depths) {
+            let (share, path) = orders[1..]
+                .iter()
+                .fold((0.0, 0.0), |(s, p), o| (s + o.share, p + o.path));
+            let excess = path / share.max(1e-300) - depth;
             let _ = writeln!(md, "| {b} | {depth:.0} | {excess:.2} | {:.3} |", excess / depth);
         }
     }
