@@ -671,6 +671,8 @@ fn first_crossings_split_by_order_keep_the_unscattered_beam_on_its_axis() {
     let crossing: f64 = orders.iter().map(|o| o.share).sum();
     assert!(crossing <= 1.0 && crossing > t, "{crossing}");
     // The same photons, windowed to 2 voxels: nothing scattered far is counted, the axis is.
+    // Every crossing counted then has r² ≤ 2², so each order's Σr² is at most 4 times its
+    // share (1e-12: the rounding of the sums).
     let near = first_crossings_by_order(&slab, z, 2.0, 4, n, 5);
     assert_eq!(near[0].share, orders[0].share);
     assert!(near
