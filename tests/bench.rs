@@ -273,6 +273,21 @@ fn tiny_speed_bench_counts_the_memory_it_reports() {
         fit_csv.lines().nth(1).unwrap().ends_with(&format!(",{tables}")),
         "{fit_csv}"
     );
+    // The plot draws the scene in colour (the grid, axes and text are grey): its two sizes'
+    // points, the line between them and the proportional line from the smaller.
+    let plot = image::open(&report.plot).expect("speed.png decodes").to_rgb8();
+    let coloured = plot
+        .pixels()
+        .filter(|p| {
+            let [r, g, b] = p.0.map(i32::from);
+            (r - g).abs().max((g - b).abs()) > 30
+        })
+        .count();
+    assert!(
+        coloured > 100,
+        "{coloured} coloured pixels in {}",
+        report.plot.display()
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 

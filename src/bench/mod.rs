@@ -332,6 +332,7 @@ pub fn run(ctx: Arc<Context>, plan: &Plan, out: &Path, progress: bool) -> Result
         &series,
         "median gpu ms per frame",
         "relative L1 error vs reference",
+        plot::Join::ParetoFront,
     )
     .map_err(write_err(&plot_path))?;
     Ok(Report {

@@ -1,5 +1,7 @@
-//! The error-versus-time plot (PNG), drawn with the `image` crate: log–log axes, one colour
-//! per scene, the Pareto front of each scene ringed and joined. Text uses a built-in 5×7 font.
+//! The bench's plots (PNG), drawn with the `image` crate: log–log axes, one colour per scene.
+//! Error against time rings and joins each scene's Pareto front; time against work joins
+//! each scene's points and draws the line linear scaling would follow from its smallest size.
+//! Text uses a built-in 5×7 font.
 
 use std::path::Path;
 
@@ -9,6 +11,16 @@ use image::{Rgb, RgbImage};
 pub struct Series<'a> {
     pub name: &'a str,
     pub points: Vec<(f64, f64)>,
+}
+
+/// How a plot joins each series' points.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Join {
+    /// The Pareto front (no other point both faster and more accurate), ringed and joined.
+    ParetoFront,
+    /// Every point in order of x, with a dashed line of slope 1 from the point of least x:
+    /// where y would be if it grew in proportion to x.
+    Proportional,
 }
 
 const WIDTH: u32 = 960;
@@ -115,6 +127,19 @@ impl Canvas {
         }
     }
 
+    /// A line drawn 6 pixels on, 4 off.
+    fn dashed(&mut self, (x0, y0): (i64, i64), (x1, y1): (i64, i64), c: [u8; 3]) {
+        let steps = (x1 - x0).abs().max((y1 - y0).abs()).max(1);
+        for k in 0..=steps {
+            if k % 10 < 6 {
+                let t = k as f64 / steps as f64;
+                let x = (x0 as f64 + (x1 - x0) as f64 * t).round() as i64;
+                let y = (y0 as f64 + (y1 - y0) as f64 * t).round() as i64;
+                self.put(x, y, c);
+            }
+        }
+    }
+
     fn disc(&mut self, cx: i64, cy: i64, r: i64, c: [u8; 3]) {
         for y in -r..=r {
             for x in -r..=r {
@@ -177,10 +202,43 @@ fn tick_label(exp: i32) -> String {
     }
 }
 
-/// Writes the plot of error (y) against time (x) to `path`.
-pub fn write(path: &Path, series: &[Series], x_label: &str, y_label: &str) -> Result<(), String> {
+/// A point of a plot, (x, y).
+type Point = (f64, f64);
+
+/// The positive points of a series in order of x, and for `Join::Proportional` the ends of
+/// its line of slope 1: from its first point to the last point's x.
+fn proportional(points: &[Point]) -> (Vec<Point>, Option<(Point, Point)>) {
+    let mut sorted: Vec<Point> = points.iter().copied().filter(|p| p.0 > 0.0 && p.1 > 0.0).collect();
+    sorted.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let guide = match (sorted.first(), sorted.last()) {
+        (Some(&a), Some(&b)) if b.0 > a.0 => Some((a, (b.0, a.1 * b.0 / a.0))),
+        _ => None,
+    };
+    (sorted, guide)
+}
+
+/// A colour halfway to white.
+fn pale(c: [u8; 3]) -> [u8; 3] {
+    c.map(|v| ((v as u16 + 255) / 2) as u8)
+}
+
+/// Writes the plot of y against x to `path`, each series joined as `join` says (error
+/// against time: `Join::ParetoFront`).
+pub fn write(path: &Path, series: &[Series], x_label: &str, y_label: &str, join: Join) -> Result<(), String> {
     let mut c = Canvas(RgbImage::from_pixel(WIDTH, HEIGHT, Rgb([255, 255, 255])));
-    let all = || series.iter().flat_map(|s| s.points.iter());
+    let guides: Vec<_> = series
+        .iter()
+        .map(|s| match join {
+            Join::Proportional => proportional(&s.points).1,
+            Join::ParetoFront => None,
+        })
+        .collect();
+    let all = || {
+        series
+            .iter()
+            .flat_map(|s| s.points.iter().copied())
+            .chain(guides.iter().flatten().map(|g| g.1))
+    };
     let (x0, x1) = decades(all().map(|p| p.0));
     let (y0, y1) = decades(all().map(|p| p.1));
     let (pw, ph) = (
@@ -229,20 +287,33 @@ pub fn write(path: &Path, series: &[Series], x_label: &str, y_label: &str) -> Re
     c.text(LEFT, TOP - 30, y_label, ink);
     for (i, s) in series.iter().enumerate() {
         let colour = PALETTE[i % PALETTE.len()];
-        let front = pareto_front(&s.points);
-        for w in front.windows(2) {
-            let (a, b) = (s.points[w[0]], s.points[w[1]]);
-            c.line((px(a.0), py(a.1)), (px(b.0), py(b.1)), colour);
+        match join {
+            Join::ParetoFront => {
+                let front = pareto_front(&s.points);
+                for w in front.windows(2) {
+                    let (a, b) = (s.points[w[0]], s.points[w[1]]);
+                    c.line((px(a.0), py(a.1)), (px(b.0), py(b.1)), colour);
+                }
+                for &k in &front {
+                    let (t, e) = s.points[k];
+                    if t > 0.0 && e > 0.0 {
+                        c.ring(px(t), py(e), 7, colour);
+                    }
+                }
+            }
+            Join::Proportional => {
+                if let Some((a, b)) = guides[i] {
+                    c.dashed((px(a.0), py(a.1)), (px(b.0), py(b.1)), pale(colour));
+                }
+                let (sorted, _) = proportional(&s.points);
+                for w in sorted.windows(2) {
+                    c.line((px(w[0].0), py(w[0].1)), (px(w[1].0), py(w[1].1)), colour);
+                }
+            }
         }
         for &(t, e) in &s.points {
             if t > 0.0 && e > 0.0 {
                 c.disc(px(t), py(e), 3, colour);
-            }
-        }
-        for &k in &front {
-            let (t, e) = s.points[k];
-            if t > 0.0 && e > 0.0 {
-                c.ring(px(t), py(e), 7, colour);
             }
         }
         let ly = TOP + 10 + i as i64 * 24;
@@ -252,14 +323,32 @@ pub fn write(path: &Path, series: &[Series], x_label: &str, y_label: &str) -> Re
     }
     let ly = TOP + 10 + series.len() as i64 * 24 + 10;
     let lx = WIDTH as i64 - RIGHT + 20;
-    c.ring(lx + 5, ly + 7, 7, ink);
-    c.text(lx + 18, ly, "pareto front", ink);
+    match join {
+        Join::ParetoFront => {
+            c.ring(lx + 5, ly + 7, 7, ink);
+            c.text(lx + 18, ly, "pareto front", ink);
+        }
+        Join::Proportional => {
+            c.dashed((lx - 4, ly + 7), (lx + 14, ly + 7), pale(ink));
+            c.text(lx + 18, ly, "proportional", ink);
+        }
+    }
     c.0.save(path).map_err(|e| e.to_string())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_proportional_line_runs_from_the_least_x_with_slope_one() {
+        let (sorted, guide) = proportional(&[(40.0, 9.0), (10.0, 4.0), (20.0, 5.0), (0.0, 1.0)]);
+        // The point at x = 0 has no place on log axes; the rest in order of x.
+        assert_eq!(sorted, vec![(10.0, 4.0), (20.0, 5.0), (40.0, 9.0)]);
+        // Four times the x, four times the first point's y.
+        assert_eq!(guide, Some(((10.0, 4.0), (40.0, 16.0))));
+        assert_eq!(proportional(&[(3.0, 1.0)]).1, None);
+    }
 
     #[test]
     fn pareto_front_keeps_only_undominated_points() {

@@ -95,6 +95,7 @@ pub fn run(ctx: Arc<Context>, plan: &ScatterPlan, out: &Path, progress: bool) ->
         &series,
         "gpu ms per render",
         "radial profile rel. L1 vs monte carlo (mean)",
+        plot::Join::ParetoFront,
     )
     .map_err(write_err(&plot_path))?;
     Ok(ScatterReport {

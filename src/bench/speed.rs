@@ -233,6 +233,41 @@ pub struct SpeedReport {
     pub markdown: PathBuf,
     pub csv: PathBuf,
     pub fit_csv: PathBuf,
+    /// GPU ms per frame against pixels × planes (`write_plot`).
+    pub plot: PathBuf,
+}
+
+/// Plots each scene's GPU ms per frame against its viewport's pixels × planes (millions), log
+/// against log, beside the line proportional scaling would follow from its smallest size: a
+/// scene whose time grows more slowly than its work (a fixed cost, work skipped) bends below
+/// it. The legend gives each scene's fitted exponent.
+pub fn write_plot(path: &Path, rows: &[SpeedRow], fits: &[SpeedFit]) -> Result<(), String> {
+    let names: Vec<String> = fits
+        .iter()
+        .map(|f| match f.exponent {
+            Some(e) => format!("{} {:.2}", f.scene, e),
+            None => f.scene.clone(),
+        })
+        .collect();
+    let series: Vec<super::plot::Series> = fits
+        .iter()
+        .zip(&names)
+        .map(|(f, name)| super::plot::Series {
+            name,
+            points: rows
+                .iter()
+                .filter(|r| r.scene == f.scene && !r.tiny)
+                .map(|r| (r.pixel_planes() / 1e6, r.gpu_ms.median))
+                .collect(),
+        })
+        .collect();
+    super::plot::write(
+        path,
+        &series,
+        "pixels x planes (millions)",
+        "ms per frame (scenes: fitted exponent)",
+        super::plot::Join::Proportional,
+    )
 }
 
 /// The 1, 5 and 15 minute load averages (Linux), to judge how much other work shared the
@@ -391,6 +426,7 @@ pub fn run(ctx: Arc<Context>, plan: &SpeedPlan, out: &Path, progress: bool) -> R
     let markdown = out.join("speed.md");
     let csv = out.join("speed.csv");
     let fit_csv = out.join("speed-fit.csv");
+    let plot = out.join("speed.png");
     let load_after = load_average();
     let context = super::speed_report::Context {
         device: &device,
@@ -403,6 +439,7 @@ pub fn run(ctx: Arc<Context>, plan: &SpeedPlan, out: &Path, progress: bool) -> R
     super::speed_report::write_markdown(&markdown, &rows, &fits, &context).map_err(write_err(&markdown))?;
     super::speed_report::write_csv(&csv, &rows).map_err(write_err(&csv))?;
     super::speed_report::write_fit_csv(&fit_csv, &fits).map_err(write_err(&fit_csv))?;
+    write_plot(&plot, &rows, &fits).map_err(write_err(&plot))?;
     Ok(SpeedReport {
         rows,
         fits,
@@ -410,6 +447,7 @@ pub fn run(ctx: Arc<Context>, plan: &SpeedPlan, out: &Path, progress: bool) -> R
         markdown,
         csv,
         fit_csv,
+        plot,
     })
 }
 

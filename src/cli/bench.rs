@@ -60,7 +60,8 @@ pub struct BenchArgs {
     /// light-grid cells, light tile steps, footprint pixels and peak memory for each scene at 128², 256², 512²
     /// and 1024² (128² and 256² with --quick; on a CPU driver up to 512², or 256² with --quick)
     /// and 8² (the fixed cost per plane), with the
-    /// scaling fit; writes speed.md, speed.csv and speed-fit.csv. Scenes: the built-in ones at
+    /// scaling fit; writes speed.md, speed.csv, speed-fit.csv and speed.png (ms per frame against
+    /// pixels × planes). Scenes: the built-in ones at
     /// their own resolution (or --resolution) and the CT head (`ct-head`) when it was fetched.
     #[arg(long)]
     speed: bool,
@@ -306,7 +307,11 @@ fn speed_bench(args: &BenchArgs) -> Result<()> {
         plan.sizes = args.sizes.clone();
     }
     let report = speed::run(ctx.clone(), &plan, &args.out, true)?;
-    show_report(Some(&ctx), &report.markdown, &[&report.csv, &report.fit_csv])
+    show_report(
+        Some(&ctx),
+        &report.markdown,
+        &[&report.csv, &report.fit_csv, &report.plot],
+    )
 }
 
 fn steps_bench(args: &BenchArgs, scenes: &[String], ctx: std::sync::Arc<Context>) -> Result<()> {
