@@ -51,11 +51,15 @@ const LIGHT_LISTS: u32 = 2 * VIEW_PLANES_PER_PASS * 2;
 fn light_list_slot(parity: u32, offset: u32, list: u32) -> u64 {
     ((parity * VIEW_PLANES_PER_PASS + offset) * 2 + list) as u64
 }
-/// Bytes the light of the planes a view pass spans may take. The beams' power: eight planes
-/// up to about 700² pixels, three at 1024² (where the fixed cost per plane matters least);
-/// refracted beams' deposits (rgb): eight planes up to 512², four at the viewer's full level
-/// (644×768), one at 1024².
-const VIEW_RING_BYTES: u64 = 48 << 20;
+/// Bytes the light of the planes a view pass spans may take: the beams' power, eight planes
+/// up to 1024²; refracted beams' deposits, eight planes up to the viewer's full level
+/// (644×768) and at 1024² eight where the light is grey, six where the medium colours it
+/// (rgb). The deposits are one storage buffer, and 128 MiB is the least storage buffer range
+/// Vulkan allows a device. A view pass per plane loads and stores every ray's record on every
+/// plane: with 48 MiB (one plane per pass at 1024² in rgb, four at 644×768) the CT head's
+/// view passes took 19–20 s at 1024² against 10.4 s with five planes per pass, and 6.0–6.3 s
+/// against 5.5–5.9 s at 644×768 with eight.
+const VIEW_RING_BYTES: u64 = 128 << 20;
 /// The spread mode's texels per beam in each half of `beam_scatter` (`SCATTER_LAYERS` in
 /// beams.wgsl).
 const SCATTER_LAYERS: u32 = 5;
