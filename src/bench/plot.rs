@@ -1,6 +1,7 @@
 //! The bench's plots (PNG), drawn with the `image` crate: log–log axes, one colour per scene.
 //! Error against time rings and joins each scene's Pareto front; time against work joins
-//! each scene's points and draws the line linear scaling would follow from its smallest size.
+//! each scene's points and draws, dashed, the line proportional cost would follow from its
+//! smallest size.
 //! Text uses a built-in 5×7 font.
 
 use std::path::Path;
@@ -117,26 +118,24 @@ impl Canvas {
         }
     }
 
-    fn line(&mut self, (x0, y0): (i64, i64), (x1, y1): (i64, i64), c: [u8; 3]) {
+    fn line(&mut self, a: (i64, i64), b: (i64, i64), c: [u8; 3]) {
+        self.stroke(a, b, c, |_| true);
+    }
+
+    /// A line drawn 6 pixels on, 4 off.
+    fn dashed(&mut self, a: (i64, i64), b: (i64, i64), c: [u8; 3]) {
+        self.stroke(a, b, c, |k| k % 10 < 6);
+    }
+
+    /// The pixels of the line from a to b, one per step along its longer axis, where `on`
+    /// says so of the step's index.
+    fn stroke(&mut self, (x0, y0): (i64, i64), (x1, y1): (i64, i64), c: [u8; 3], on: impl Fn(i64) -> bool) {
         let steps = (x1 - x0).abs().max((y1 - y0).abs()).max(1);
-        for k in 0..=steps {
+        for k in (0..=steps).filter(|&k| on(k)) {
             let t = k as f64 / steps as f64;
             let x = (x0 as f64 + (x1 - x0) as f64 * t).round() as i64;
             let y = (y0 as f64 + (y1 - y0) as f64 * t).round() as i64;
             self.put(x, y, c);
-        }
-    }
-
-    /// A line drawn 6 pixels on, 4 off.
-    fn dashed(&mut self, (x0, y0): (i64, i64), (x1, y1): (i64, i64), c: [u8; 3]) {
-        let steps = (x1 - x0).abs().max((y1 - y0).abs()).max(1);
-        for k in 0..=steps {
-            if k % 10 < 6 {
-                let t = k as f64 / steps as f64;
-                let x = (x0 as f64 + (x1 - x0) as f64 * t).round() as i64;
-                let y = (y0 as f64 + (y1 - y0) as f64 * t).round() as i64;
-                self.put(x, y, c);
-            }
         }
     }
 
