@@ -350,9 +350,15 @@ fn view_segment(px: vec2<u32>, k: u32, tile: u32, r: ptr<function, ViewRay>) -> 
     }
     let dir = safe_normalize(v);
     if (REFRACTION && skipped) {
-        // Skipped through empty bricks (its tile unbent): straight on from where it was stored.
-        let stored = vec3<f32>(x0.xy, plane_z(u32(aux.z) - 1u));
-        x0 = stored + dir * ((x0.z - stored.z) / dir.z);
+        // Skipped through empty bricks (its tile unbent): straight on from where it was
+        // stored, plane by plane with the arithmetic of the segments it skipped, so that it
+        // lands where stepping would have put it, to the bit, whichever planes were skipped
+        // (one jump rounds differently, and refraction at a grazing rim amplifies that).
+        for (var j = u32(aux.z) - 1u; j + 1u < k; j++) {
+            let a = vec3<f32>(x0.xy, plane_z(j));
+            x0 = a + dir * ((plane_z(j + 1u) - a.z) / dir.z);
+        }
+        x0 = vec3<f32>(x0.xy, plane_z(k - 1u));
     }
     if (dir.z < P.limits.y && guarded(SG_VIEW_MIN_Z)) {
         // The ray turned (nearly) parallel to the planes or back toward the camera: it leaves
