@@ -99,16 +99,16 @@ pub struct RenderRequest {
     /// (beams: their light stays where the light pass left it); 0 for the default, at most 8
     /// (the lists of light tiles hold a pass of 8 planes). Each pass keeps its rays' state in
     /// registers between planes, so 1 and the default give the same image up to the rounding
-    /// of the stored state, and with refraction up to that of where rays not yet bent are
-    /// carried straight over empty bricks instead of stepped (a pass that spans more planes
-    /// steps more of them: `step_empty_view_tiles`).
+    /// of the stored state (rays carried over empty bricks land where stepping puts them,
+    /// whichever planes a pass skips: `step_empty_view_tiles`).
     pub view_planes: u32,
     /// Keep stepping the light no view ray still alive can read (which a render stops, with
     /// the same image). Tests only: false in every real render.
     #[doc(hidden)]
     pub keep_unseen_light: bool,
-    /// Step view rays through empty bricks too (a render carries those not yet bent straight
-    /// over them, the same image up to rounding). Tests only: false in every real render.
+    /// Step view rays through empty bricks too (a render carries those not yet bent over
+    /// them plane by plane with the steps' arithmetic: the same image to the bit). Tests
+    /// only: false in every real render.
     #[doc(hidden)]
     pub step_empty_view_tiles: bool,
     /// Step the light one dispatch per plane where a dispatch could take the planes up to the
