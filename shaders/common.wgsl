@@ -566,10 +566,15 @@ fn segment_particles(a: f32, b: f32, ratio: f32, clipped: bool) -> vec4<f32> {
     return vec4<f32>(e.rgb * scale, alpha);
 }
 
+// The medium table's entry for a segment from value a to value b: τ_m per channel and τ_α,
+// per sample distance.
+fn medium_entry(a: f32, b: f32) -> vec4<f32> {
+    return textureSampleLevel(medium_table, linear_clamp, table_uv(a, b), 0.0);
+}
+
 // Medium transmittance of the segment.
 fn segment_medium(a: f32, b: f32, ratio: f32) -> vec3<f32> {
-    let tau = textureSampleLevel(medium_table, linear_clamp, table_uv(a, b), 0.0).rgb;
-    return exp(-tau * ratio);
+    return exp(-medium_entry(a, b).rgb * ratio);
 }
 
 // Where to split a segment whose value is v0 at the front, vm halfway and v1 at the back, and
@@ -609,8 +614,8 @@ fn split_medium(a: f32, split: vec2<f32>, b: f32, ratio: f32) -> vec3<f32> {
 // table holds τ_α beside τ_m), as `split_particles` and `split_medium` would give them.
 fn segment_transmittance(a: f32, m: f32, b: f32, ratio: f32, clipped: bool) -> vec3<f32> {
     let split = segment_split(a, m, b);
-    let front = textureSampleLevel(medium_table, linear_clamp, table_uv(a, split.y), 0.0);
-    let back = textureSampleLevel(medium_table, linear_clamp, table_uv(split.y, b), 0.0);
+    let front = medium_entry(a, split.y);
+    let back = medium_entry(split.y, b);
     let w = vec2<f32>(split.x, 1.0 - split.x) * ratio;
     var tau = vec3<f32>(select(front.a * w.x + back.a * w.y, 0.0, clipped));
     if (MEDIUM) {

@@ -225,18 +225,16 @@ fn pale(c: [u8; 3]) -> [u8; 3] {
 /// against time: `Join::ParetoFront`).
 pub fn write(path: &Path, series: &[Series], x_label: &str, y_label: &str, join: Join) -> Result<(), String> {
     let mut c = Canvas(RgbImage::from_pixel(WIDTH, HEIGHT, Rgb([255, 255, 255])));
-    let guides: Vec<_> = series
+    // Per series with `Join::Proportional`: its points in order of x and its dashed line.
+    let lines: Vec<_> = series
         .iter()
-        .map(|s| match join {
-            Join::Proportional => proportional(&s.points).1,
-            Join::ParetoFront => None,
-        })
+        .map(|s| (join == Join::Proportional).then(|| proportional(&s.points)))
         .collect();
     let all = || {
         series
             .iter()
             .flat_map(|s| s.points.iter().copied())
-            .chain(guides.iter().flatten().map(|g| g.1))
+            .chain(lines.iter().flatten().filter_map(|(_, guide)| guide.map(|g| g.1)))
     };
     let (x0, x1) = decades(all().map(|p| p.0));
     let (y0, y1) = decades(all().map(|p| p.1));
@@ -301,10 +299,10 @@ pub fn write(path: &Path, series: &[Series], x_label: &str, y_label: &str, join:
                 }
             }
             Join::Proportional => {
-                if let Some((a, b)) = guides[i] {
+                let (sorted, guide) = lines[i].as_ref().expect("computed for Join::Proportional");
+                if let Some((a, b)) = *guide {
                     c.dashed((px(a.0), py(a.1)), (px(b.0), py(b.1)), pale(colour));
                 }
-                let (sorted, _) = proportional(&s.points);
                 for w in sorted.windows(2) {
                     c.line((px(w[0].0), py(w[0].1)), (px(w[1].0), py(w[1].1)), colour);
                 }

@@ -469,13 +469,12 @@ pub fn markdown(rows: &[ModeRow], plan: &ModesPlan, device: &str) -> String {
 /// depth, which path-length moments do not follow.
 pub fn crossing_orders(plan: &ModesPlan) -> String {
     let mut md = String::new();
-    let Some(&wanted) = plan.depths.get(1) else {
-        return md;
-    };
-    let depth = f64::from(wanted - ENTRY);
     // Per b, the light on every measured plane by order, walked once: the first table splits
     // the shallowest plane's, the second sums the scattered orders of each.
-    let depths: Vec<f64> = plan.depths[1..].iter().map(|&z| f64::from(z - ENTRY)).collect();
+    let depths: Vec<f64> = plan.depths.iter().skip(1).map(|&z| f64::from(z - ENTRY)).collect();
+    let Some(&depth) = depths.first() else {
+        return md;
+    };
     let by_b: Vec<(f32, Vec<Vec<CrossingOrder>>)> = plan
         .scattering
         .iter()
