@@ -273,8 +273,10 @@ fn tiny_speed_bench_counts_the_memory_it_reports() {
         fit_csv.lines().nth(1).unwrap().ends_with(&format!(",{tables}")),
         "{fit_csv}"
     );
-    // The plot draws the scene in colour (the grid, axes and text are grey): its two sizes'
-    // points, the line between them and the proportional line from the smaller.
+    // The plot draws the scene in colour (the grid, axes and text are grey): its legend's
+    // disc (radius 5: 81 pixels) and its two sizes' points (radius 3: 29 pixels each, far
+    // apart), with the line between them and the proportional line from the smaller on top;
+    // the discs alone bound the count from below.
     let plot = image::open(&report.plot).expect("speed.png decodes").to_rgb8();
     let coloured = plot
         .pixels()
@@ -284,7 +286,7 @@ fn tiny_speed_bench_counts_the_memory_it_reports() {
         })
         .count();
     assert!(
-        coloured > 100,
+        coloured >= 81 + 2 * 29,
         "{coloured} coloured pixels in {}",
         report.plot.display()
     );
