@@ -510,14 +510,17 @@ fn level_size(m: u32) -> vec2<u32> {
     return s;
 }
 
-// Offset of level m within a plane of the pyramid, in texels.
-fn level_offset(m: u32) -> u32 {
-    var o = 0u;
-    for (var j = 0u; j < m; j++) {
-        let s = level_size(j);
-        o += s.x * s.y;
+// Where level m lies in the atlas of a plane of the pyramid: level 0 at its corner, the
+// coarser levels stacked in a column to its right (`deposit_atlas` in state.rs).
+fn level_origin(m: u32) -> vec2<u32> {
+    if (m == 0u) {
+        return vec2<u32>(0u);
     }
-    return o;
+    var y = 0u;
+    for (var j = 1u; j < m; j++) {
+        y += level_size(j).y;
+    }
+    return vec2<u32>(level_size(0u).x, y);
 }
 
 // The slot of the ring of deposited light (`light_acc`) that plane k deposits onto: P.sweep.z
@@ -526,21 +529,17 @@ fn deposit_slot(k: u32) -> u32 {
     return k % P.sweep.z;
 }
 
-// The first texel of level m of light slot `slot` (P.sweep.w: the texels of a plane of the
-// pyramid).
-fn level_base(slot: u32, m: u32) -> u32 {
-    return slot * P.sweep.w + level_offset(m);
+// Index in `light_acc` of atlas texel a of channel ch of light slot `slot`: a layer per
+// channel and slot (P.deposits.y words each) of rows of P.deposits.x words. With
+// `ACC_IMAGE` the same words are the image `light_acc_tex`, layer slot × channels + ch.
+fn atlas_index(slot: u32, ch: u32, a: vec2<u32>) -> u32 {
+    return (slot * P.tiles.w + ch) * P.deposits.y + a.y * P.deposits.x + a.x;
 }
 
-// Index of the first channel of texel q of the level that starts at texel `base` and has rows
-// of `row` texels.
-fn level_texel(base: u32, row: u32, q: vec2<u32>) -> u32 {
-    return (base + q.y * row + q.x) * P.tiles.w;
-}
-
-// Index of the first channel of texel q of level m of light slot `slot`.
+// Index of the first channel of texel q of level m of light slot `slot` (the others follow
+// a layer apart).
 fn acc_texel(slot: u32, m: u32, q: vec2<u32>) -> u32 {
-    return level_texel(level_base(slot, m), level_size(m).x, q);
+    return atlas_index(slot, 0u, level_origin(m) + q);
 }
 
 // Whether texel q of level m covers any pixel of the rect (the only texels cleared and read).
@@ -560,9 +559,9 @@ fn add_light(texel: u32, amount: vec3<f32>, weight: f32, direction: vec3<f32>, d
     for (var ch = 0u; ch < n_colour; ch++) {
         let q = u32(amount[ch] * weight * ACC_SCALE + dither);
         if (q > 0u) {
-            let old = atomicAdd(&light_acc[texel + ch], q);
+            let old = atomicAdd(&light_acc[texel + ch * P.deposits.y], q);
             if (old + q >= ACC_SATURATED && guarded(SG_SATURATION)) {
-                atomicMin(&light_acc[texel + ch], ACC_SATURATED);
+                atomicMin(&light_acc[texel + ch * P.deposits.y], ACC_SATURATED);
             }
         }
     }
@@ -572,7 +571,7 @@ fn add_light(texel: u32, amount: vec3<f32>, weight: f32, direction: vec3<f32>, d
         for (var ch = 0u; ch < 3u; ch++) {
             let q = i32(round(direction[ch] * s));
             if (q != 0) {
-                atomicAdd(&light_acc[texel + n_colour + ch], bitcast<u32>(q));
+                atomicAdd(&light_acc[texel + (n_colour + ch) * P.deposits.y], bitcast<u32>(q));
             }
         }
     }
@@ -610,9 +609,8 @@ fn deposit(slot: u32, c: vec2<f32>, w_in: vec2<f32>, w_min: f32, amount: vec3<f3
     let first = clamp((min(hi, q0 + vec2<f32>(1.0)) - lo) / wl, vec2<f32>(0.0), vec2<f32>(1.0));
     // Level texels hold the light averaged over their s² pixels.
     let a = amount / (s * s);
-    // The level's first texel and row length, once for the four.
-    let base = level_base(slot, m);
-    let row = level_size(m).x;
+    // The level's first texel, once for the four.
+    let base = acc_texel(slot, m, vec2<u32>(0u));
     for (var n = 0u; n < 4u; n++) {
         let o = vec2<u32>(n & 1u, n >> 1u);
         let q = vec2<i32>(q0) + vec2<i32>(o);
@@ -622,17 +620,27 @@ fn deposit(slot: u32, c: vec2<f32>, w_in: vec2<f32>, w_min: f32, amount: vec3<f3
         if (weight > 0.0 && level_texel_in_rect(m, q)) {
             // Unbiased rounding: a deterministic dither per beam and texel.
             let h = hash(seed ^ (u32(q.x) * 73856093u) ^ (u32(q.y) * 19349663u));
-            add_light(level_texel(base, row, vec2<u32>(q)), a, weight, direction, f32(h & 0xffffu) / 65536.0);
+            add_light(base + u32(q.y) * P.deposits.x + u32(q.x), a, weight, direction, f32(h & 0xffffu) / 65536.0);
         }
     }
 }
 
-// Light and direction sums at the texel whose first channel is `texel` (`level_texel`).
-fn acc_load(texel: u32) -> LightSample {
-    var c = vec3<f32>(f32(min(atomicLoad(&light_acc[texel]), ACC_SATURATED)));
+// One channel of the deposited light at atlas texel a of slot `slot`: an image fetch with
+// `ACC_IMAGE` (which a CPU driver gathers for all invocations at once), else an atomic load
+// (which it makes invocation by invocation). Saturated sums read as the cap.
+fn acc_channel(slot: u32, ch: u32, a: vec2<u32>) -> u32 {
+    if (ACC_IMAGE) {
+        return textureLoad(light_acc_tex, vec2<i32>(a), i32(slot * P.tiles.w + ch)).x;
+    }
+    return atomicLoad(&light_acc[atlas_index(slot, ch, a)]);
+}
+
+// Light and direction sums at atlas texel a of slot `slot`.
+fn acc_load(slot: u32, a: vec2<u32>) -> LightSample {
+    var c = vec3<f32>(f32(min(acc_channel(slot, 0u, a), ACC_SATURATED)));
     if (MEDIUM) {
-        c.g = f32(min(atomicLoad(&light_acc[texel + 1u]), ACC_SATURATED));
-        c.b = f32(min(atomicLoad(&light_acc[texel + 2u]), ACC_SATURATED));
+        c.g = f32(min(acc_channel(slot, 1u, a), ACC_SATURATED));
+        c.b = f32(min(acc_channel(slot, 2u, a), ACC_SATURATED));
     }
     var dir = vec3<f32>(0.0);
     if (deposits_direction()) {
@@ -641,9 +649,9 @@ fn acc_load(texel: u32) -> LightSample {
             nc = 3u;
         }
         dir = vec3<f32>(
-            f32(bitcast<i32>(atomicLoad(&light_acc[texel + nc]))),
-            f32(bitcast<i32>(atomicLoad(&light_acc[texel + nc + 1u]))),
-            f32(bitcast<i32>(atomicLoad(&light_acc[texel + nc + 2u]))));
+            f32(bitcast<i32>(acc_channel(slot, nc, a))),
+            f32(bitcast<i32>(acc_channel(slot, nc + 1u, a))),
+            f32(bitcast<i32>(acc_channel(slot, nc + 2u, a))));
     }
     return LightSample(c / ACC_SCALE, dir);
 }
@@ -659,7 +667,8 @@ fn acc_load(texel: u32) -> LightSample {
 // each loop and branch for every invocation).
 fn deposited_at(slot: u32, t: vec2<f32>) -> LightSample {
     var sum = LightSample(vec3<f32>(0.0), vec3<f32>(0.0));
-    var base = slot * P.sweep.w;
+    // Level m's corner in the atlas (`level_origin`), moved on as the levels go.
+    var origin = vec2<u32>(0u);
     for (var m = 0u; m < acc_levels(); m++) {
         let size = level_size(m);
         let s = i32(1u << m);
@@ -672,11 +681,15 @@ fn deposited_at(slot: u32, t: vec2<f32>) -> LightSample {
             let o = vec2<u32>(n & 1u, n >> 1u);
             let w = select(1.0 - f.x, f.x, o.x == 1u) * select(1.0 - f.y, f.y, o.y == 1u);
             let q = vec2<u32>(clamp(vec2<i32>(lo) + vec2<i32>(o), first, last));
-            let l = acc_load(level_texel(base, size.x, q));
+            let l = acc_load(slot, origin + q);
             sum.color += w * l.color;
             sum.dir += w * l.dir;
         }
-        base += size.x * size.y;
+        if (m == 0u) {
+            origin.x = size.x;
+        } else {
+            origin.y += size.y;
+        }
     }
     return sum;
 }

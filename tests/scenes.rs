@@ -339,6 +339,56 @@ fn skipping_empty_view_tiles_renders_what_stepping_them_does() {
 }
 
 #[test]
+fn the_deposited_light_reads_the_same_through_its_image_as_through_its_buffer() {
+    // On a CPU driver the view reads the beams' deposits through a linear image over the
+    // buffer they are added into (a texel fetch is gathered for all lanes at once, a
+    // buffer load made lane by lane); elsewhere it reads the buffer. Both read the same
+    // words: refracted light (grey and rgb, with view passes over several planes), the
+    // spread mode's seven levels, and the light debug views (the direction's three more
+    // channels; the light views' rect is the frame) must come out the same to the bit.
+    let mut gpu = Gpu::new();
+    let cases = [
+        ("supernova", DebugView::Image, true),
+        ("glass-wine", DebugView::Image, true),
+        ("milk-glass", DebugView::Image, false),
+        ("ball-lens", DebugView::LightDirection, true),
+        ("ball-lens", DebugView::Light, true),
+    ];
+    for (name, debug, refract) in cases {
+        let mut scene = builtin(name).unwrap().scene;
+        scene.set_builtin_resolution(32);
+        if refract {
+            scene.quality.refraction = Toggle::On;
+        }
+        let p = PreparedScene::load(&scene).unwrap();
+        let mut req = RenderRequest::new(40, 36);
+        req.debug_view = debug;
+        req.debug_depth = 0.6;
+        let image = gpu.render(&p, &req);
+        req.buffer_deposit_reads = true;
+        let buffer = gpu.render(&p, &req);
+        assert_eq!(
+            image.stats.features.deposit_image,
+            gpu.ctx.is_cpu(),
+            "{name} {debug:?}: a CPU driver reads the deposits through the image, others through the buffer"
+        );
+        assert!(!buffer.stats.features.deposit_image);
+        assert!(
+            name != "milk-glass" || image.stats.features.scatter,
+            "milk-glass runs the spread mode"
+        );
+        assert!(
+            image.image.pixels == buffer.image.pixels,
+            "{name} {debug:?}: the image of the deposits read other light than the buffer"
+        );
+        assert!(
+            image.image.pixels.iter().flatten().any(|v| *v > 0.0),
+            "{name} {debug:?}: a black image compares equal to anything"
+        );
+    }
+}
+
+#[test]
 fn timings_say_when_the_volume_is_sampled_at_half_resolution() {
     let dir = std::env::temp_dir().join(format!("caustica-volume-level-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);

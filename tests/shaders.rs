@@ -93,6 +93,7 @@ fn representative_variants_build_on_the_device() {
         lbm: true,
         scatter: false,
         sampled_layers: false,
+        deposit_image: true,
     };
     let mut backward = all;
     backward.transport = caustica::scene::LightTransport::Backward;

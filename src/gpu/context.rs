@@ -417,6 +417,13 @@ impl Context {
     }
 
     /// Nanoseconds per timestamp tick.
+    /// Whether the device is a CPU driver (lavapipe), whose shaders run the invocations of a
+    /// batch in SIMD lanes: it gathers texel fetches, and loads a storage buffer at an
+    /// address that varies between them invocation by invocation.
+    pub fn is_cpu(&self) -> bool {
+        self.properties.device_type == vk::PhysicalDeviceType::CPU
+    }
+
     pub fn timestamp_period_ns(&self) -> f64 {
         self.properties.limits.timestamp_period as f64
     }

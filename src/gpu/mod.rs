@@ -50,7 +50,7 @@ pub use fault::Faults;
 pub use instance::{list_devices, DeviceInfo};
 pub use meter::MemoryUse;
 pub use pipeline::{ComputePipeline, DescriptorSet, Resource};
-pub use resources::{Buffer, Image, ImageDesc, Sampler, SamplerDesc};
+pub use resources::{AliasedBuffer, Buffer, Image, ImageDesc, LinearLayout, Sampler, SamplerDesc};
 pub use shader::{Binding, BindingKind, CompiledShader, ShaderLayout, ShaderSource};
 pub use timestamps::Timestamps;
 

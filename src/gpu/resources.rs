@@ -439,6 +439,208 @@ impl Drop for Image {
     }
 }
 
+/// Where the texels of a linear image lie in its memory (bytes).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LinearLayout {
+    /// From one row of a layer to the next.
+    pub row_pitch: u64,
+    /// From one layer to the next.
+    pub array_pitch: u64,
+}
+
+/// A storage buffer and a linear 2D-array image over the same memory: shaders write the
+/// buffer (atomics, which images without returned values cannot replace) and read its words
+/// back as texels of the image, laid out as [`LinearLayout`] says. A CPU driver gathers
+/// texel fetches for all the invocations of a batch at once, where it loads a storage
+/// buffer invocation by invocation.
+pub struct AliasedBuffer {
+    /// Dropped before the buffer whose memory it views.
+    pub image: Image,
+    pub buffer: Buffer,
+    pub layout: LinearLayout,
+}
+
+/// The create info of a linear 2D array image that shaders read as a storage image.
+fn linear_info(format: vk::Format, width: u32, height: u32, layers: u32) -> vk::ImageCreateInfo<'static> {
+    vk::ImageCreateInfo::default()
+        .image_type(vk::ImageType::TYPE_2D)
+        .format(format)
+        .extent(vk::Extent3D {
+            width,
+            height,
+            depth: 1,
+        })
+        .mip_levels(1)
+        .array_layers(layers)
+        .samples(vk::SampleCountFlags::TYPE_1)
+        .tiling(vk::ImageTiling::LINEAR)
+        .usage(vk::ImageUsageFlags::STORAGE)
+        .sharing_mode(vk::SharingMode::EXCLUSIVE)
+        .initial_layout(vk::ImageLayout::UNDEFINED)
+}
+
+/// The layout of a live linear image: its first layer's pitches, with layer 0 at offset 0.
+fn linear_layout_of(ctx: &Context, image: vk::Image, layers: u32) -> Option<LinearLayout> {
+    let sub = |layer| vk::ImageSubresource {
+        aspect_mask: vk::ImageAspectFlags::COLOR,
+        mip_level: 0,
+        array_layer: layer,
+    };
+    // SAFETY: plain queries on a live linear image with these subresources.
+    let first = unsafe { ctx.device.get_image_subresource_layout(image, sub(0)) };
+    let pitch = if layers > 1 {
+        // SAFETY: as above.
+        unsafe { ctx.device.get_image_subresource_layout(image, sub(1)) }.offset
+    } else {
+        first.array_pitch.max(first.size)
+    };
+    (first.offset == 0 && first.row_pitch > 0 && pitch >= first.row_pitch).then_some(LinearLayout {
+        row_pitch: first.row_pitch,
+        array_pitch: pitch,
+    })
+}
+
+impl AliasedBuffer {
+    /// Whether the device can read a linear 2D array storage image of `format` this large.
+    fn supported(ctx: &Context, format: vk::Format, width: u32, height: u32, layers: u32) -> bool {
+        // SAFETY: plain queries on a valid physical device.
+        let features =
+            unsafe { ctx.instance.get_physical_device_format_properties(ctx.physical, format) }.linear_tiling_features;
+        // SAFETY: as above.
+        let properties = unsafe {
+            ctx.instance.get_physical_device_image_format_properties(
+                ctx.physical,
+                format,
+                vk::ImageType::TYPE_2D,
+                vk::ImageTiling::LINEAR,
+                vk::ImageUsageFlags::STORAGE,
+                vk::ImageCreateFlags::empty(),
+            )
+        };
+        features.contains(vk::FormatFeatureFlags::STORAGE_IMAGE)
+            && properties.is_ok_and(|p| {
+                width <= p.max_extent.width && height <= p.max_extent.height && layers <= p.max_array_layers
+            })
+    }
+
+    /// The layout such an image of `format` would have, or None where the device cannot
+    /// read one (then the buffer is read as a buffer).
+    pub fn layout(ctx: &Context, format: vk::Format, width: u32, height: u32, layers: u32) -> Option<LinearLayout> {
+        if !Self::supported(ctx, format, width, height, layers) {
+            return None;
+        }
+        // SAFETY: valid create info; the image is destroyed below and never bound.
+        let image = unsafe {
+            ctx.device
+                .create_image(&linear_info(format, width, height, layers), None)
+        }
+        .ok()?;
+        let layout = linear_layout_of(ctx, image, layers);
+        // SAFETY: created above, never used.
+        unsafe { ctx.device.destroy_image(image, None) };
+        layout
+    }
+
+    /// A storage buffer of `layers` layers of `width`×`height` texels of `format` and the
+    /// image that views it, with the layout [`AliasedBuffer::layout`] gave.
+    pub fn new(
+        ctx: &Arc<Context>,
+        label: &str,
+        format: vk::Format,
+        width: u32,
+        height: u32,
+        layers: u32,
+    ) -> Result<Self, GpuError> {
+        let unsupported = || GpuError::Format(format, "a linear image over a storage buffer");
+        if !Self::supported(ctx, format, width, height, layers) {
+            return Err(unsupported());
+        }
+        let d = &ctx.device;
+        let mut image = Image {
+            ctx: ctx.clone(),
+            raw: vk::Image::null(),
+            view: vk::ImageView::null(),
+            allocation: None,
+            desc: ImageDesc {
+                label: format!("{label} image"),
+                format,
+                extent: [width, height, 1],
+                dim3: false,
+                mip_levels: 1,
+                layers: Some(layers),
+                usage: vk::ImageUsageFlags::STORAGE,
+            },
+        };
+        let info = linear_info(format, width, height, layers);
+        // SAFETY: valid create info; the image is destroyed in Drop.
+        image.raw = unsafe { d.create_image(&info, None) }.map_err(vk_err("vkCreateImage"))?;
+        let layout = linear_layout_of(ctx, image.raw, layers).ok_or_else(unsupported)?;
+        // SAFETY: plain query on the live image.
+        let image_req = unsafe { d.get_image_memory_requirements(image.raw) };
+        let size = (layout.array_pitch * layers as u64).max(image_req.size);
+        let range = ctx.limits().max_storage_buffer_range as u64;
+        if size > range {
+            return Err(GpuError::OutOfDeviceMemory {
+                what: format!("{label} (larger than the device's storage buffer range of {range} bytes)"),
+                bytes: size,
+            });
+        }
+        let usage = vk::BufferUsageFlags::STORAGE_BUFFER
+            | vk::BufferUsageFlags::TRANSFER_DST
+            | vk::BufferUsageFlags::TRANSFER_SRC;
+        let location = MemoryLocation::GpuOnly;
+        let mut buffer = Buffer {
+            ctx: ctx.clone(),
+            raw: vk::Buffer::null(),
+            allocation: None,
+            location,
+            size,
+            usage,
+            label: label.to_string(),
+        };
+        let buffer_info = vk::BufferCreateInfo::default()
+            .size(size)
+            .usage(usage)
+            .sharing_mode(vk::SharingMode::EXCLUSIVE);
+        // SAFETY: valid create info; the buffer is destroyed in Drop.
+        buffer.raw =
+            unsafe { d.create_buffer(&buffer_info, None) }.map_err(|e| oom_of(label, size, "vkCreateBuffer", e))?;
+        // SAFETY: plain query on the live buffer.
+        let buffer_req = unsafe { d.get_buffer_memory_requirements(buffer.raw) };
+        // One allocation that suits both.
+        let requirements = vk::MemoryRequirements {
+            size: buffer_req.size.max(image_req.size),
+            alignment: buffer_req.alignment.max(image_req.alignment),
+            memory_type_bits: buffer_req.memory_type_bits & image_req.memory_type_bits,
+        };
+        if requirements.memory_type_bits == 0 {
+            return Err(unsupported());
+        }
+        let allocation = buffer
+            .allocation
+            .insert(allocate(ctx, label, requirements, location, true)?);
+        // SAFETY: the memory suits both the buffer's and the image's requirements; both are
+        // bound at its start, and the buffer (which frees it) outlives the image (dropped
+        // first, as the struct orders them).
+        unsafe {
+            d.bind_buffer_memory(buffer.raw, allocation.memory(), allocation.offset())
+                .map_err(vk_err("vkBindBufferMemory"))?;
+            d.bind_image_memory(image.raw, allocation.memory(), allocation.offset())
+                .map_err(vk_err("vkBindImageMemory"))?;
+        }
+        let view_info = vk::ImageViewCreateInfo::default()
+            .image(image.raw)
+            .view_type(vk::ImageViewType::TYPE_2D_ARRAY)
+            .format(format)
+            .subresource_range(Image::full_range(1));
+        // SAFETY: the image is live and bound to memory; the view is destroyed in Drop.
+        image.view = unsafe { d.create_image_view(&view_info, None) }.map_err(vk_err("vkCreateImageView"))?;
+        ctx.set_name(buffer.raw, label);
+        ctx.set_name(image.raw, &image.desc.label);
+        Ok(AliasedBuffer { image, buffer, layout })
+    }
+}
+
 /// Sampler settings that matter to the renderer.
 #[derive(Clone, Debug)]
 pub struct SamplerDesc {

@@ -34,6 +34,10 @@ pub struct Features {
     /// No orientation volume (the device has no room for it, `PreparedScene::fit_to_device`):
     /// the view takes the layers' orientation from six samples of the volume.
     pub sampled_layers: bool,
+    /// The view reads the beams' deposited light through an image over the same memory
+    /// (`ACC_IMAGE`): on a CPU driver, which gathers texel fetches and loads a storage
+    /// buffer invocation by invocation. The same light to the bit either way.
+    pub deposit_image: bool,
 }
 
 /// Diagnostic buffers `--debug-view` can show instead of the image.
@@ -83,6 +87,7 @@ impl Features {
             lbm: q.multiple_scattering == MultipleScattering::Lbm && tf.scatters(),
             scatter: Self::spread(scene, tf, refraction),
             sampled_layers: false,
+            deposit_image: false,
         }
     }
 
@@ -134,6 +139,8 @@ impl Features {
                     scatter: false,
                     // Both ways, with the projection's switch rather than doubling the count.
                     sampled_layers: b(6),
+                    // Both ways where the beams deposit (refraction), with the medium's switch.
+                    deposit_image: b(0) && b(1),
                 }
             })
             .collect()
@@ -158,6 +165,7 @@ impl Features {
             ("SAFEGUARDS_OFF", 0.0),
             ("LBM", f(self.lbm)),
             ("SAMPLED_LAYERS", f(self.sampled_layers)),
+            ("ACC_IMAGE", f(self.deposit_image)),
         ]
     }
 

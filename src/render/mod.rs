@@ -116,6 +116,11 @@ pub struct RenderRequest {
     /// false in every real render.
     #[doc(hidden)]
     pub per_plane_light: bool,
+    /// Read the deposited light as a storage buffer where a render would read it through an
+    /// image over the same memory (a CPU driver, `Features::deposit_image`: the same image
+    /// to the bit). Tests only: false in every real render.
+    #[doc(hidden)]
+    pub buffer_deposit_reads: bool,
     /// Time each pass apart: timestamps between the light, view and listing passes of every
     /// plane ([`RenderStats::pass_ms`]). A CPU driver finishes the work before each timestamp,
     /// and on lavapipe they cost about 0.08 ms per plane (a third of the fixed cost of a
@@ -143,6 +148,7 @@ impl RenderRequest {
             keep_unseen_light: false,
             step_empty_view_tiles: false,
             per_plane_light: false,
+            buffer_deposit_reads: false,
             pass_timings: false,
             keep_coarse_volume: false,
         }
@@ -289,7 +295,8 @@ impl Renderer {
         req: &RenderRequest,
         precision: Precision,
     ) -> Result<RenderOutput, RenderError> {
-        let features = prepared.features();
+        let mut features = prepared.features();
+        features.deposit_image = !req.buffer_deposit_reads && state::deposit_image(&self.ctx, &features, req);
         if features.lbm && self.lbm.is_none() {
             self.lbm = Some(lbm::Pipelines::new(&self.ctx)?);
         }

@@ -46,8 +46,11 @@ pub struct Params {
     /// the unrefracted beams'; refracted beams deposit their own from y planes back;
     /// `front_power_region` in beams.wgsl); y: planes back along its light line from which a
     /// view sample reads it, those in a voxel (`beams_unscattered_through`,
-    /// `beams_light_through`); the rest unused.
+    /// `beams_light_through`); z: slots of deposited light; w unused.
     pub sweep: [u32; 4],
+    /// The atlas of deposited light (`atlas_index` in beams.wgsl): words per row, words per
+    /// layer (a channel of a slot); the rest unused.
+    pub deposits: [u32; 4],
 }
 
 /// Mirrors `struct Immediates` (push constants).
@@ -91,7 +94,7 @@ mod tests {
             panic!()
         };
         let expected = [
-            0, 64, 128, 192, 208, 224, 240, 256, 272, 288, 304, 320, 336, 352, 368, 384, 400, 416, 432, 448, 464,
+            0, 64, 128, 192, 208, 224, 240, 256, 272, 288, 304, 320, 336, 352, 368, 384, 400, 416, 432, 448, 464, 480,
         ];
         let offsets: Vec<u32> = members.iter().map(|m| m.offset).collect();
         assert_eq!(offsets, expected);

@@ -15,7 +15,8 @@ use ash::vk;
 use glam::Mat4;
 
 use crate::gpu::{
-    Buffer, ComputePipeline, Context, DescriptorSet, GpuError, Image, ImageDesc, Recorder, Resource, Timestamps,
+    AliasedBuffer, Buffer, ComputePipeline, Context, DescriptorSet, GpuError, Image, ImageDesc, LinearLayout, Recorder,
+    Resource, Timestamps,
 };
 
 use super::light_tiles::{self, NEVER};
@@ -127,9 +128,9 @@ struct Layout {
     light_groups: bool,
     /// The beams are refracted (they deposit their light).
     refraction: bool,
-    /// Texels of one plane of the pyramid of deposited light (`ACC_LEVELS` levels, or the
+    /// Where a plane of the deposited light lies in `light_acc` (`ACC_LEVELS` levels, or the
     /// spread mode's `SCATTER_LEVELS`).
-    pyramid_texels: u64,
+    atlas: DepositAtlas,
     /// Planes back along its light line from which a view sample reads the beams' power
     /// (`beams_unscattered_through` and `beams_light_through` in beams.wgsl): those in a
     /// voxel.
@@ -154,7 +155,7 @@ impl Layout {
             deposit_slots: LIGHT_RING as u32,
             light_groups: false,
             refraction: false,
-            pyramid_texels: 0,
+            atlas: DepositAtlas::default(),
             back_planes: 1,
         }
     }
@@ -180,11 +181,64 @@ fn image_side(n: u32, max: u32) -> u32 {
     side
 }
 
-/// Texels of one plane of the deposit pyramid of a `w`×`h` image with `levels` levels.
-fn pyramid_texels(w: u32, h: u32, levels: u32) -> u64 {
-    (0..levels)
-        .map(|m| w.div_ceil(1 << m) as u64 * h.div_ceil(1 << m) as u64)
-        .sum()
+/// A plane of the pyramid of deposited light in `light_acc`: level 0 at the corner of an
+/// atlas, the coarser levels stacked in a column to its right (`level_origin` in
+/// beams.wgsl), each channel of each slot a layer of the atlas (`atlas_index`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+struct DepositAtlas {
+    width: u32,
+    height: u32,
+    /// Words from one row to the next.
+    row_words: u64,
+    /// Words from one layer to the next.
+    layer_words: u64,
+}
+
+impl DepositAtlas {
+    /// The atlas of a `w`×`h` image's pyramid of `levels` levels (at least two), its rows
+    /// and layers packed.
+    fn new(w: u32, h: u32, levels: u32) -> Self {
+        let side = |n: u32, m: u32| n.div_ceil(1 << m);
+        let column: u32 = (1..levels).map(|m| side(h, m)).sum();
+        let (width, height) = (w + side(w, 1), h.max(column));
+        DepositAtlas {
+            width,
+            height,
+            row_words: width as u64,
+            layer_words: width as u64 * height as u64,
+        }
+    }
+
+    /// The same atlas where an image's layout (`gpu::LinearLayout`, 4-byte texels) places
+    /// its rows and layers.
+    fn laid_out(self, layout: LinearLayout) -> Self {
+        DepositAtlas {
+            row_words: layout.row_pitch / 4,
+            layer_words: layout.array_pitch / 4,
+            ..self
+        }
+    }
+
+    /// Bytes of one slot of `channels` channels.
+    fn slot_bytes(&self, channels: u32) -> u64 {
+        self.layer_words * channels as u64 * 4
+    }
+}
+
+/// Largest number of layers the deposit ring's image can need: the most slots (a view pass's
+/// planes and two more) times the most channels (rgb light and a direction).
+const MAX_DEPOSIT_LAYERS: u32 = (VIEW_PLANES_PER_PASS + 2) * 6;
+
+/// Whether a render of `req` with `features` reads the deposited light through an image over
+/// `light_acc` (`Features::deposit_image`): on a CPU driver that can read such a linear
+/// image of the atlas's size, where the beams deposit.
+pub(super) fn deposit_image(ctx: &Context, features: &Features, req: &RenderRequest) -> bool {
+    if !ctx.is_cpu() || !deposit_ring(features) {
+        return false;
+    }
+    let levels = if features.scatter { SCATTER_LEVELS } else { ACC_LEVELS };
+    let atlas = DepositAtlas::new(req.width, req.height, levels);
+    AliasedBuffer::layout(ctx, vk::Format::R32_UINT, atlas.width, atlas.height, MAX_DEPOSIT_LAYERS).is_some()
 }
 
 /// Whether the beams deposit their light in the ring `light_acc` (refraction, the spread
@@ -379,12 +433,8 @@ fn make_params(
                 | u32::from(layout.light_groups) << 3,
         ],
         light_box,
-        sweep: [
-            layout.front_planes(),
-            layout.back_planes,
-            layout.deposit_slots,
-            layout.pyramid_texels as u32,
-        ],
+        sweep: [layout.front_planes(), layout.back_planes, layout.deposit_slots, 0],
+        deposits: [layout.atlas.row_words as u32, layout.atlas.layer_words as u32, 0, 0],
     }
 }
 
@@ -402,6 +452,9 @@ fn progress_bar(show: bool, planes: u64) -> Option<indicatif::ProgressBar> {
 /// The state buffers and images of one render, by binding name (`shaders/common.wgsl`); those
 /// the scene does not need are 16-byte placeholders (1×1 images).
 struct State {
+    /// `light_acc_tex`: the image over `light_acc`'s memory that the view reads with
+    /// `Features::deposit_image`, else a 1×1 placeholder. Dropped before the buffers.
+    acc_image: Image,
     buffers: Vec<(&'static str, Buffer)>,
     /// The beams' and view rays' state from plane to plane: 2D array images, a texel per beam
     /// or pixel, so that what a shader reads of it inside a branch (a beam's neighbours, the
@@ -427,12 +480,10 @@ impl State {
         let beams = features.transport == LightTransport::Beams;
         let refraction = features.refraction;
         let back_dir = !beams && (refraction || features.intensity_correction);
+        let deposits = deposit_ring(features);
+        let layers = layout.deposit_slots * layout.channels;
         let sizes: [(&str, u64, bool); 12] = [
-            (
-                "light_acc",
-                layout.deposit_slots as u64 * layout.pyramid_texels * layout.channels as u64 * 4,
-                deposit_ring(features),
-            ),
+            ("light_acc", layers as u64 * layout.atlas.layer_words * 4, deposits),
             ("back_light", LIGHT_RING * cells * rgba, !beams),
             ("back_dir", LIGHT_RING * cells * 16, back_dir),
             ("image_out", pixels * 16, true),
@@ -451,13 +502,35 @@ impl State {
         ];
         let mut buffers = Vec::new();
         let mut bytes = 0;
+        let mut acc_image = None;
         for (name, size, needed) in sizes {
             let size = if needed { size.max(16) } else { 16 };
             if needed && name != "image_out" {
                 bytes += size;
             }
-            buffers.push((name, Buffer::new_storage(ctx, name, size)?));
+            let buffer = if name == "light_acc" && needed && features.deposit_image {
+                let a = layout.atlas;
+                let aliased = AliasedBuffer::new(ctx, name, vk::Format::R32_UINT, a.width, a.height, layers)?;
+                if a.laid_out(aliased.layout) != a {
+                    return Err(GpuError::Format(
+                        vk::Format::R32_UINT,
+                        "the deposited light's image (its layout changed with its layers)",
+                    ));
+                }
+                acc_image = Some(aliased.image);
+                aliased.buffer
+            } else {
+                Buffer::new_storage(ctx, name, size)?
+            };
+            buffers.push((name, buffer));
         }
+        let acc_image = match acc_image {
+            Some(image) => image,
+            None => Image::new(
+                ctx,
+                ImageDesc::storage_2d_array("light_acc_tex placeholder", vk::Format::R32_UINT, 1, 1, 1),
+            )?,
+        };
         // The per-plane state that the shaders read inside branches: images, layers as
         // `shaders/common.wgsl` describes them. The beams' records: v.z, data value, shadow
         // depth and plane in the two halves, and with refraction position and v.xy. Their power
@@ -499,7 +572,12 @@ impl State {
             }
             images.push((name, image));
         }
-        Ok(State { buffers, images, bytes })
+        Ok(State {
+            acc_image,
+            buffers,
+            images,
+            bytes,
+        })
     }
 
     fn get(&self, name: &str) -> Result<&Buffer, RenderError> {
@@ -599,7 +677,13 @@ pub(super) fn run(
     layout.skip_empty_view_tiles = !req.step_empty_view_tiles;
     layout.refraction = features.refraction;
     let levels = if features.scatter { SCATTER_LEVELS } else { ACC_LEVELS };
-    layout.pyramid_texels = pyramid_texels(view.width, view.height, levels);
+    layout.atlas = DepositAtlas::new(view.width, view.height, levels);
+    if features.deposit_image {
+        let a = layout.atlas;
+        let image = AliasedBuffer::layout(ctx, vk::Format::R32_UINT, a.width, a.height, MAX_DEPOSIT_LAYERS)
+            .ok_or_else(|| RenderError::Setup("internal: the deposited light's image is not supported".into()))?;
+        layout.atlas = a.laid_out(image);
+    }
     // View rays advance over several planes per pass where the light they read stays where
     // the light pass left it (as `view_spans_planes` in view.wgsl: the beams' power kept per
     // plane without refraction, their deposits with it; not the spread mode's scattered
@@ -613,7 +697,7 @@ pub(super) fn run(
     {
         let fit = if features.refraction {
             // The slots the pass reads, plus the one being deposited onto and the next.
-            let slot_bytes = layout.pyramid_texels * layout.channels as u64 * 4;
+            let slot_bytes = layout.atlas.slot_bytes(layout.channels);
             (VIEW_RING_BYTES / slot_bytes.max(1)).saturating_sub(2) as u32
         } else {
             let plane_bytes = grid.count() * precision.rgba_bytes();
@@ -782,6 +866,7 @@ pub(super) fn run(
         for (name, image) in &state.images {
             writes.push((*name, Resource::Image(image)));
         }
+        writes.push(("light_acc_tex", Resource::Image(&state.acc_image)));
         set.write(&writes)?;
         sets.push(set);
     }
@@ -791,7 +876,9 @@ pub(super) fn run(
     if let Some(upload) = pending {
         cached.textures.record_upload(&mut rec, upload);
     }
-    rec.init_layout(&state.images.iter().map(|(_, i)| i).collect::<Vec<_>>());
+    let mut images: Vec<&Image> = state.images.iter().map(|(_, i)| i).collect();
+    images.push(&state.acc_image);
+    rec.init_layout(&images);
     rec.fill(state.get("light_acc")?, 0);
     rec.fill(state.get("view_tiles")?, 0);
     rec.fill(state.get("tile_args")?, 0);
@@ -811,7 +898,7 @@ pub(super) fn run(
     // Beams that deposit their light (refraction, the spread mode) fill a ring of slots, one
     // per plane: each is cleared before the plane that deposits into it.
     let light_acc = state.get("light_acc")?;
-    let deposit_slot_bytes = deposit_ring(&features).then_some(light_acc.size / layout.deposit_slots as u64);
+    let deposit_slot_bytes = deposit_ring(&features).then_some(layout.atlas.slot_bytes(layout.channels));
     let texels_per_plane = (layout.grid.count() + view.rect.width() as u64 * view.rect.height() as u64).max(1);
     let planes_per_submit = (TEXELS_PER_SUBMIT / texels_per_plane).clamp(1, PLANES_PER_SUBMIT as u64) as u32;
     let push = |plane: u32, view_steps: u32, view_list: u32| Immediates {
@@ -1064,10 +1151,24 @@ mod tests {
     }
 
     #[test]
-    fn a_pyramid_plane_is_a_third_larger_than_the_image() {
-        // 64² + 32² + 16² texels.
-        assert_eq!(super::pyramid_texels(64, 64, super::ACC_LEVELS), 4096 + 1024 + 256);
-        assert_eq!(super::pyramid_texels(5, 3, super::ACC_LEVELS), 15 + 6 + 2);
+    fn the_deposit_atlas_holds_the_levels_side_by_side() {
+        // Level 0 (64²) beside a column of 32² over 16².
+        let a = super::DepositAtlas::new(64, 64, super::ACC_LEVELS);
+        assert_eq!((a.width, a.height, a.row_words, a.layer_words), (96, 64, 96, 96 * 64));
+        // Odd sides round up: 5×3, then 3×2 over 2×1; the column (3 rows) is as tall as
+        // level 0.
+        let a = super::DepositAtlas::new(5, 3, super::ACC_LEVELS);
+        assert_eq!((a.width, a.height), (8, 3));
+        // Seven levels of 1×1 stack six rows beside a one-row level 0.
+        let a = super::DepositAtlas::new(1, 1, super::SCATTER_LEVELS);
+        assert_eq!((a.width, a.height), (2, 6));
+        // Every level fits (the shader's `level_origin`): the column's rows below the height.
+        for (w, h, levels) in [(64, 64, 3), (643, 769, 3), (100, 7, 7), (1, 1, 7)] {
+            let a = super::DepositAtlas::new(w, h, levels);
+            let rows: u32 = (1..levels).map(|m| h.div_ceil(1 << m)).sum();
+            assert!(rows <= a.height && h <= a.height && w + w.div_ceil(2) == a.width);
+            assert!((1..levels).all(|m| w.div_ceil(1 << m) <= w.div_ceil(2)));
+        }
     }
 
     #[test]
