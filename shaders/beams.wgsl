@@ -510,8 +510,18 @@ fn level_size(m: u32) -> vec2<u32> {
     return s;
 }
 
-// Where level m lies in the atlas of a plane of the pyramid: level 0 at its corner, the
-// coarser levels stacked in a column to its right (`deposit_atlas` in state.rs).
+// Offset of level m within a plane of the pyramid packed level after level, in texels.
+fn level_offset(m: u32) -> u32 {
+    var o = 0u;
+    for (var j = 0u; j < m; j++) {
+        let s = level_size(j);
+        o += s.x * s.y;
+    }
+    return o;
+}
+
+// Where level m lies in the atlas of a plane of the pyramid with `ACC_IMAGE`: level 0 at its
+// corner, the coarser levels stacked in a column to its right (`atlas_size` in state.rs).
 fn level_origin(m: u32) -> vec2<u32> {
     if (m == 0u) {
         return vec2<u32>(0u);
@@ -529,17 +539,30 @@ fn deposit_slot(k: u32) -> u32 {
     return k % P.sweep.z;
 }
 
-// Index in `light_acc` of atlas texel a of channel ch of light slot `slot`: a layer per
-// channel and slot (P.deposits.y words each) of rows of P.deposits.x words. With
-// `ACC_IMAGE` the same words are the image `light_acc_tex`, layer slot × channels + ch.
-fn atlas_index(slot: u32, ch: u32, a: vec2<u32>) -> u32 {
-    return (slot * P.tiles.w + ch) * P.deposits.y + a.y * P.deposits.x + a.x;
+// Level m of a plane of the deposited light in `light_acc`, where each channel of each slot
+// is a layer of P.deposits.y words: the word of its first texel in a layer and the words
+// from one of its rows to the next. Packed level after level, or with `ACC_IMAGE` in the
+// atlas of the image `light_acc_tex` over the same words (rows of P.deposits.x words, layer
+// slot × channels + channel), whose texel `origin` is its first.
+struct AccLevel {
+    start: u32,
+    row: u32,
+    origin: vec2<u32>,
+}
+
+fn acc_level(m: u32) -> AccLevel {
+    if (ACC_IMAGE) {
+        let o = level_origin(m);
+        return AccLevel(o.y * P.deposits.x + o.x, P.deposits.x, o);
+    }
+    return AccLevel(level_offset(m), level_size(m).x, vec2<u32>(0u));
 }
 
 // Index of the first channel of texel q of level m of light slot `slot` (the others follow
 // a layer apart).
 fn acc_texel(slot: u32, m: u32, q: vec2<u32>) -> u32 {
-    return atlas_index(slot, 0u, level_origin(m) + q);
+    let l = acc_level(m);
+    return slot * P.tiles.w * P.deposits.y + l.start + q.y * l.row + q.x;
 }
 
 // Whether texel q of level m covers any pixel of the rect (the only texels cleared and read).
@@ -609,8 +632,9 @@ fn deposit(slot: u32, c: vec2<f32>, w_in: vec2<f32>, w_min: f32, amount: vec3<f3
     let first = clamp((min(hi, q0 + vec2<f32>(1.0)) - lo) / wl, vec2<f32>(0.0), vec2<f32>(1.0));
     // Level texels hold the light averaged over their s² pixels.
     let a = amount / (s * s);
-    // The level's first texel, once for the four.
+    // The level's first texel and row length, once for the four.
     let base = acc_texel(slot, m, vec2<u32>(0u));
+    let row = acc_level(m).row;
     for (var n = 0u; n < 4u; n++) {
         let o = vec2<u32>(n & 1u, n >> 1u);
         let q = vec2<i32>(q0) + vec2<i32>(o);
@@ -620,27 +644,29 @@ fn deposit(slot: u32, c: vec2<f32>, w_in: vec2<f32>, w_min: f32, amount: vec3<f3
         if (weight > 0.0 && level_texel_in_rect(m, q)) {
             // Unbiased rounding: a deterministic dither per beam and texel.
             let h = hash(seed ^ (u32(q.x) * 73856093u) ^ (u32(q.y) * 19349663u));
-            add_light(base + u32(q.y) * P.deposits.x + u32(q.x), a, weight, direction, f32(h & 0xffffu) / 65536.0);
+            add_light(base + u32(q.y) * row + u32(q.x), a, weight, direction, f32(h & 0xffffu) / 65536.0);
         }
     }
 }
 
-// One channel of the deposited light at atlas texel a of slot `slot`: an image fetch with
-// `ACC_IMAGE` (which a CPU driver gathers for all invocations at once), else an atomic load
-// (which it makes invocation by invocation). Saturated sums read as the cap.
-fn acc_channel(slot: u32, ch: u32, a: vec2<u32>) -> u32 {
+// One channel of the deposited light at texel q of level l of slot `slot`: an image load
+// with `ACC_IMAGE` (which a CPU driver gathers for all invocations at once), else an atomic
+// load (which it makes invocation by invocation).
+fn acc_channel(slot: u32, ch: u32, l: AccLevel, q: vec2<u32>) -> u32 {
+    let layer = slot * P.tiles.w + ch;
     if (ACC_IMAGE) {
-        return textureLoad(light_acc_tex, vec2<i32>(a), i32(slot * P.tiles.w + ch)).x;
+        return textureLoad(light_acc_tex, vec2<i32>(l.origin + q), i32(layer)).x;
     }
-    return atomicLoad(&light_acc[atlas_index(slot, ch, a)]);
+    return atomicLoad(&light_acc[layer * P.deposits.y + l.start + q.y * l.row + q.x]);
 }
 
-// Light and direction sums at atlas texel a of slot `slot`.
-fn acc_load(slot: u32, a: vec2<u32>) -> LightSample {
-    var c = vec3<f32>(f32(min(acc_channel(slot, 0u, a), ACC_SATURATED)));
+// Light and direction sums at texel q of level l of slot `slot` (saturated sums read as the
+// cap).
+fn acc_load(slot: u32, l: AccLevel, q: vec2<u32>) -> LightSample {
+    var c = vec3<f32>(f32(min(acc_channel(slot, 0u, l, q), ACC_SATURATED)));
     if (MEDIUM) {
-        c.g = f32(min(acc_channel(slot, 1u, a), ACC_SATURATED));
-        c.b = f32(min(acc_channel(slot, 2u, a), ACC_SATURATED));
+        c.g = f32(min(acc_channel(slot, 1u, l, q), ACC_SATURATED));
+        c.b = f32(min(acc_channel(slot, 2u, l, q), ACC_SATURATED));
     }
     var dir = vec3<f32>(0.0);
     if (deposits_direction()) {
@@ -649,9 +675,9 @@ fn acc_load(slot: u32, a: vec2<u32>) -> LightSample {
             nc = 3u;
         }
         dir = vec3<f32>(
-            f32(bitcast<i32>(acc_channel(slot, nc, a))),
-            f32(bitcast<i32>(acc_channel(slot, nc + 1u, a))),
-            f32(bitcast<i32>(acc_channel(slot, nc + 2u, a))));
+            f32(bitcast<i32>(acc_channel(slot, nc, l, q))),
+            f32(bitcast<i32>(acc_channel(slot, nc + 1u, l, q))),
+            f32(bitcast<i32>(acc_channel(slot, nc + 2u, l, q))));
     }
     return LightSample(c / ACC_SCALE, dir);
 }
@@ -667,10 +693,13 @@ fn acc_load(slot: u32, a: vec2<u32>) -> LightSample {
 // each loop and branch for every invocation).
 fn deposited_at(slot: u32, t: vec2<f32>) -> LightSample {
     var sum = LightSample(vec3<f32>(0.0), vec3<f32>(0.0));
-    // Level m's corner in the atlas (`level_origin`), moved on as the levels go.
-    var origin = vec2<u32>(0u);
+    // Level m (`acc_level`), moved on as the levels go.
+    var l = acc_level(0u);
     for (var m = 0u; m < acc_levels(); m++) {
         let size = level_size(m);
+        if (!ACC_IMAGE) {
+            l.row = size.x;
+        }
         let s = i32(1u << m);
         let first = vec2<i32>(P.rect.xy) / s;
         let last = (vec2<i32>(P.rect.zw) - vec2<i32>(1)) / s;
@@ -681,14 +710,18 @@ fn deposited_at(slot: u32, t: vec2<f32>) -> LightSample {
             let o = vec2<u32>(n & 1u, n >> 1u);
             let w = select(1.0 - f.x, f.x, o.x == 1u) * select(1.0 - f.y, f.y, o.y == 1u);
             let q = vec2<u32>(clamp(vec2<i32>(lo) + vec2<i32>(o), first, last));
-            let l = acc_load(slot, origin + q);
-            sum.color += w * l.color;
-            sum.dir += w * l.dir;
+            let light = acc_load(slot, l, q);
+            sum.color += w * light.color;
+            sum.dir += w * light.dir;
         }
-        if (m == 0u) {
-            origin.x = size.x;
+        if (ACC_IMAGE) {
+            if (m == 0u) {
+                l.origin.x = size.x;
+            } else {
+                l.origin.y += size.y;
+            }
         } else {
-            origin.y += size.y;
+            l.start += size.x * size.y;
         }
     }
     return sum;

@@ -130,7 +130,9 @@ struct Layout {
     refraction: bool,
     /// Where a plane of the deposited light lies in `light_acc` (`ACC_LEVELS` levels, or the
     /// spread mode's `SCATTER_LEVELS`).
-    atlas: DepositAtlas,
+    deposits: DepositLayout,
+    /// With `Features::deposit_image`: the size of the atlas the levels lie in.
+    atlas: (u32, u32),
     /// Planes back along its light line from which a view sample reads the beams' power
     /// (`beams_unscattered_through` and `beams_light_through` in beams.wgsl): those in a
     /// voxel.
@@ -155,7 +157,8 @@ impl Layout {
             deposit_slots: LIGHT_RING as u32,
             light_groups: false,
             refraction: false,
-            atlas: DepositAtlas::default(),
+            deposits: DepositLayout::default(),
+            atlas: (0, 0),
             back_planes: 1,
         }
     }
@@ -181,41 +184,32 @@ fn image_side(n: u32, max: u32) -> u32 {
     side
 }
 
-/// A plane of the pyramid of deposited light in `light_acc`: level 0 at the corner of an
-/// atlas, the coarser levels stacked in a column to its right (`level_origin` in
-/// beams.wgsl), each channel of each slot a layer of the atlas (`atlas_index`).
+/// Where a plane of the pyramid of deposited light lies in `light_acc`: each channel of each
+/// slot a layer of `layer_words` words, its levels packed one after the other, or with
+/// `Features::deposit_image` in an atlas (`atlas_size`) of rows of `row_words` words, as the
+/// image over the same memory lays them out (`acc_level` in beams.wgsl).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-struct DepositAtlas {
-    width: u32,
-    height: u32,
-    /// Words from one row to the next.
+struct DepositLayout {
+    /// Words from one row of the atlas to the next (0: packed).
     row_words: u64,
     /// Words from one layer to the next.
     layer_words: u64,
 }
 
-impl DepositAtlas {
-    /// The atlas of a `w`×`h` image's pyramid of `levels` levels (at least two), its rows
-    /// and layers packed.
-    fn new(w: u32, h: u32, levels: u32) -> Self {
-        let side = |n: u32, m: u32| n.div_ceil(1 << m);
-        let column: u32 = (1..levels).map(|m| side(h, m)).sum();
-        let (width, height) = (w + side(w, 1), h.max(column));
-        DepositAtlas {
-            width,
-            height,
-            row_words: width as u64,
-            layer_words: width as u64 * height as u64,
+impl DepositLayout {
+    /// The levels of a `w`×`h` image's pyramid of `levels` levels packed.
+    fn packed(w: u32, h: u32, levels: u32) -> Self {
+        DepositLayout {
+            row_words: 0,
+            layer_words: pyramid_texels(w, h, levels),
         }
     }
 
-    /// The same atlas where an image's layout (`gpu::LinearLayout`, 4-byte texels) places
-    /// its rows and layers.
-    fn laid_out(self, layout: LinearLayout) -> Self {
-        DepositAtlas {
+    /// The atlas laid out as an image's layout says (4-byte texels).
+    fn image(layout: LinearLayout) -> Self {
+        DepositLayout {
             row_words: layout.row_pitch / 4,
             layer_words: layout.array_pitch / 4,
-            ..self
         }
     }
 
@@ -223,6 +217,22 @@ impl DepositAtlas {
     fn slot_bytes(&self, channels: u32) -> u64 {
         self.layer_words * channels as u64 * 4
     }
+}
+
+/// Texels of one plane of the deposit pyramid of a `w`×`h` image with `levels` levels.
+fn pyramid_texels(w: u32, h: u32, levels: u32) -> u64 {
+    (0..levels)
+        .map(|m| w.div_ceil(1 << m) as u64 * h.div_ceil(1 << m) as u64)
+        .sum()
+}
+
+/// Width and height of the atlas of a `w`×`h` image's pyramid of `levels` levels (at least
+/// two): level 0 at its corner, the coarser levels stacked in a column to its right
+/// (`level_origin` in beams.wgsl). An eighth more texels than the pyramid (the column's
+/// lower quarter is mostly empty).
+fn atlas_size(w: u32, h: u32, levels: u32) -> (u32, u32) {
+    let column: u32 = (1..levels).map(|m| h.div_ceil(1 << m)).sum();
+    (w + w.div_ceil(2), h.max(column))
 }
 
 /// Largest number of layers the deposit ring's image can need: the most slots (a view pass's
@@ -237,8 +247,8 @@ pub(super) fn deposit_image(ctx: &Context, features: &Features, req: &RenderRequ
         return false;
     }
     let levels = if features.scatter { SCATTER_LEVELS } else { ACC_LEVELS };
-    let atlas = DepositAtlas::new(req.width, req.height, levels);
-    AliasedBuffer::layout(ctx, vk::Format::R32_UINT, atlas.width, atlas.height, MAX_DEPOSIT_LAYERS).is_some()
+    let (w, h) = atlas_size(req.width, req.height, levels);
+    AliasedBuffer::layout(ctx, vk::Format::R32_UINT, w, h, MAX_DEPOSIT_LAYERS).is_some()
 }
 
 /// Whether the beams deposit their light in the ring `light_acc` (refraction, the spread
@@ -434,7 +444,12 @@ fn make_params(
         ],
         light_box,
         sweep: [layout.front_planes(), layout.back_planes, layout.deposit_slots, 0],
-        deposits: [layout.atlas.row_words as u32, layout.atlas.layer_words as u32, 0, 0],
+        deposits: [
+            layout.deposits.row_words as u32,
+            layout.deposits.layer_words as u32,
+            0,
+            0,
+        ],
     }
 }
 
@@ -483,7 +498,7 @@ impl State {
         let deposits = deposit_ring(features);
         let layers = layout.deposit_slots * layout.channels;
         let sizes: [(&str, u64, bool); 12] = [
-            ("light_acc", layers as u64 * layout.atlas.layer_words * 4, deposits),
+            ("light_acc", layers as u64 * layout.deposits.layer_words * 4, deposits),
             ("back_light", LIGHT_RING * cells * rgba, !beams),
             ("back_dir", LIGHT_RING * cells * 16, back_dir),
             ("image_out", pixels * 16, true),
@@ -509,9 +524,9 @@ impl State {
                 bytes += size;
             }
             let buffer = if name == "light_acc" && needed && features.deposit_image {
-                let a = layout.atlas;
-                let aliased = AliasedBuffer::new(ctx, name, vk::Format::R32_UINT, a.width, a.height, layers)?;
-                if a.laid_out(aliased.layout) != a {
+                let (w, h) = layout.atlas;
+                let aliased = AliasedBuffer::new(ctx, name, vk::Format::R32_UINT, w, h, layers)?;
+                if DepositLayout::image(aliased.layout) != layout.deposits {
                     return Err(GpuError::Format(
                         vk::Format::R32_UINT,
                         "the deposited light's image (its layout changed with its layers)",
@@ -677,12 +692,13 @@ pub(super) fn run(
     layout.skip_empty_view_tiles = !req.step_empty_view_tiles;
     layout.refraction = features.refraction;
     let levels = if features.scatter { SCATTER_LEVELS } else { ACC_LEVELS };
-    layout.atlas = DepositAtlas::new(view.width, view.height, levels);
+    layout.deposits = DepositLayout::packed(view.width, view.height, levels);
     if features.deposit_image {
-        let a = layout.atlas;
-        let image = AliasedBuffer::layout(ctx, vk::Format::R32_UINT, a.width, a.height, MAX_DEPOSIT_LAYERS)
+        let (w, h) = atlas_size(view.width, view.height, levels);
+        let image = AliasedBuffer::layout(ctx, vk::Format::R32_UINT, w, h, MAX_DEPOSIT_LAYERS)
             .ok_or_else(|| RenderError::Setup("internal: the deposited light's image is not supported".into()))?;
-        layout.atlas = a.laid_out(image);
+        layout.atlas = (w, h);
+        layout.deposits = DepositLayout::image(image);
     }
     // View rays advance over several planes per pass where the light they read stays where
     // the light pass left it (as `view_spans_planes` in view.wgsl: the beams' power kept per
@@ -697,7 +713,7 @@ pub(super) fn run(
     {
         let fit = if features.refraction {
             // The slots the pass reads, plus the one being deposited onto and the next.
-            let slot_bytes = layout.atlas.slot_bytes(layout.channels);
+            let slot_bytes = layout.deposits.slot_bytes(layout.channels);
             (VIEW_RING_BYTES / slot_bytes.max(1)).saturating_sub(2) as u32
         } else {
             let plane_bytes = grid.count() * precision.rgba_bytes();
@@ -898,7 +914,7 @@ pub(super) fn run(
     // Beams that deposit their light (refraction, the spread mode) fill a ring of slots, one
     // per plane: each is cleared before the plane that deposits into it.
     let light_acc = state.get("light_acc")?;
-    let deposit_slot_bytes = deposit_ring(&features).then_some(layout.atlas.slot_bytes(layout.channels));
+    let deposit_slot_bytes = deposit_ring(&features).then_some(layout.deposits.slot_bytes(layout.channels));
     let texels_per_plane = (layout.grid.count() + view.rect.width() as u64 * view.rect.height() as u64).max(1);
     let planes_per_submit = (TEXELS_PER_SUBMIT / texels_per_plane).clamp(1, PLANES_PER_SUBMIT as u64) as u32;
     let push = |plane: u32, view_steps: u32, view_list: u32| Immediates {
@@ -1151,23 +1167,31 @@ mod tests {
     }
 
     #[test]
+    fn a_pyramid_plane_is_a_third_larger_than_the_image() {
+        // 64² + 32² + 16² texels.
+        assert_eq!(super::pyramid_texels(64, 64, super::ACC_LEVELS), 4096 + 1024 + 256);
+        assert_eq!(super::pyramid_texels(5, 3, super::ACC_LEVELS), 15 + 6 + 2);
+    }
+
+    #[test]
     fn the_deposit_atlas_holds_the_levels_side_by_side() {
         // Level 0 (64²) beside a column of 32² over 16².
-        let a = super::DepositAtlas::new(64, 64, super::ACC_LEVELS);
-        assert_eq!((a.width, a.height, a.row_words, a.layer_words), (96, 64, 96, 96 * 64));
+        assert_eq!(super::atlas_size(64, 64, super::ACC_LEVELS), (96, 64));
         // Odd sides round up: 5×3, then 3×2 over 2×1; the column (3 rows) is as tall as
         // level 0.
-        let a = super::DepositAtlas::new(5, 3, super::ACC_LEVELS);
-        assert_eq!((a.width, a.height), (8, 3));
+        assert_eq!(super::atlas_size(5, 3, super::ACC_LEVELS), (8, 3));
         // Seven levels of 1×1 stack six rows beside a one-row level 0.
-        let a = super::DepositAtlas::new(1, 1, super::SCATTER_LEVELS);
-        assert_eq!((a.width, a.height), (2, 6));
-        // Every level fits (the shader's `level_origin`): the column's rows below the height.
+        assert_eq!(super::atlas_size(1, 1, super::SCATTER_LEVELS), (2, 6));
+        // Every level fits (the shader's `level_origin`): level 0 and the column's rows, each
+        // no wider than level 1.
         for (w, h, levels) in [(64, 64, 3), (643, 769, 3), (100, 7, 7), (1, 1, 7)] {
-            let a = super::DepositAtlas::new(w, h, levels);
+            let (aw, ah) = super::atlas_size(w, h, levels);
             let rows: u32 = (1..levels).map(|m| h.div_ceil(1 << m)).sum();
-            assert!(rows <= a.height && h <= a.height && w + w.div_ceil(2) == a.width);
+            assert!(rows <= ah && h <= ah && w + w.div_ceil(2) == aw);
             assert!((1..levels).all(|m| w.div_ceil(1 << m) <= w.div_ceil(2)));
+            // So it has room for every texel of the pyramid.
+            let pyramid = super::pyramid_texels(w, h, levels);
+            assert!(aw as u64 * ah as u64 >= pyramid);
         }
     }
 
