@@ -154,11 +154,23 @@ impl Buffer {
         usage: vk::BufferUsageFlags,
         location: MemoryLocation,
     ) -> Result<Self, GpuError> {
+        let mut buffer = Self::unbound(ctx, label, size, usage, location)?;
+        buffer.bind(None)?;
+        Ok(buffer)
+    }
+
+    /// The buffer, not yet bound to memory (`bind`).
+    fn unbound(
+        ctx: &Arc<Context>,
+        label: &str,
+        size: u64,
+        usage: vk::BufferUsageFlags,
+        location: MemoryLocation,
+    ) -> Result<Self, GpuError> {
         let info = vk::BufferCreateInfo::default()
             .size(size.max(4))
             .usage(usage)
             .sharing_mode(vk::SharingMode::EXCLUSIVE);
-        let d = &ctx.device;
         // Filled in step by step: on an error `Drop` releases what was created (destroying a
         // null handle does nothing).
         let mut buffer = Buffer {
@@ -171,18 +183,38 @@ impl Buffer {
             label: label.to_string(),
         };
         // SAFETY: valid create info; the buffer is destroyed in Drop.
-        buffer.raw = unsafe { d.create_buffer(&info, None) }.map_err(|e| oom_of(label, size, "vkCreateBuffer", e))?;
-        // SAFETY: plain query on the live buffer.
-        let requirements = unsafe { d.get_buffer_memory_requirements(buffer.raw) };
-        let allocation = buffer
-            .allocation
-            .insert(allocate(ctx, label, requirements, location, true)?);
-        // SAFETY: the memory was allocated for this buffer's requirements and is not bound
-        // to anything else; it is freed after the buffer in Drop.
-        unsafe { d.bind_buffer_memory(buffer.raw, allocation.memory(), allocation.offset()) }
-            .map_err(vk_err("vkBindBufferMemory"))?;
+        buffer.raw =
+            unsafe { ctx.device.create_buffer(&info, None) }.map_err(|e| oom_of(label, size, "vkCreateBuffer", e))?;
         ctx.set_name(buffer.raw, label);
         Ok(buffer)
+    }
+
+    /// Allocates the buffer's memory and binds the buffer at its start. With `shared`, the
+    /// requirements of another resource to be bound at the same place (an image over the
+    /// same memory): the memory meets both; None where no memory type suits both.
+    fn bind(&mut self, shared: Option<vk::MemoryRequirements>) -> Result<Option<&Allocation>, GpuError> {
+        let d = &self.ctx.device;
+        // SAFETY: plain query on the live buffer.
+        let mut requirements = unsafe { d.get_buffer_memory_requirements(self.raw) };
+        if let Some(other) = shared {
+            requirements = vk::MemoryRequirements {
+                size: requirements.size.max(other.size),
+                alignment: requirements.alignment.max(other.alignment),
+                memory_type_bits: requirements.memory_type_bits & other.memory_type_bits,
+            };
+            if requirements.memory_type_bits == 0 {
+                return Ok(None);
+            }
+        }
+        let allocation = self
+            .allocation
+            .insert(allocate(&self.ctx, &self.label, requirements, self.location, true)?);
+        // SAFETY: the memory was allocated for this buffer's requirements and is bound to
+        // nothing else but, with `shared`, the resource whose requirements it meets too; it
+        // is freed after the buffer in Drop.
+        unsafe { d.bind_buffer_memory(self.raw, allocation.memory(), allocation.offset()) }
+            .map_err(vk_err("vkBindBufferMemory"))?;
+        Ok(Some(allocation))
     }
 
     /// Bytes of memory the buffer holds (its allocation, at least `size`).
@@ -588,46 +620,13 @@ impl AliasedBuffer {
         let usage = vk::BufferUsageFlags::STORAGE_BUFFER
             | vk::BufferUsageFlags::TRANSFER_DST
             | vk::BufferUsageFlags::TRANSFER_SRC;
-        let location = MemoryLocation::GpuOnly;
-        let mut buffer = Buffer {
-            ctx: ctx.clone(),
-            raw: vk::Buffer::null(),
-            allocation: None,
-            location,
-            size,
-            usage,
-            label: label.to_string(),
-        };
-        let buffer_info = vk::BufferCreateInfo::default()
-            .size(size)
-            .usage(usage)
-            .sharing_mode(vk::SharingMode::EXCLUSIVE);
-        // SAFETY: valid create info; the buffer is destroyed in Drop.
-        buffer.raw =
-            unsafe { d.create_buffer(&buffer_info, None) }.map_err(|e| oom_of(label, size, "vkCreateBuffer", e))?;
-        // SAFETY: plain query on the live buffer.
-        let buffer_req = unsafe { d.get_buffer_memory_requirements(buffer.raw) };
-        // One allocation that suits both.
-        let requirements = vk::MemoryRequirements {
-            size: buffer_req.size.max(image_req.size),
-            alignment: buffer_req.alignment.max(image_req.alignment),
-            memory_type_bits: buffer_req.memory_type_bits & image_req.memory_type_bits,
-        };
-        if requirements.memory_type_bits == 0 {
-            return Err(unsupported());
-        }
-        let allocation = buffer
-            .allocation
-            .insert(allocate(ctx, label, requirements, location, true)?);
-        // SAFETY: the memory suits both the buffer's and the image's requirements; both are
-        // bound at its start, and the buffer (which frees it) outlives the image (dropped
+        let mut buffer = Buffer::unbound(ctx, label, size, usage, MemoryLocation::GpuOnly)?;
+        let allocation = buffer.bind(Some(image_req))?.ok_or_else(unsupported)?;
+        // SAFETY: the memory meets the image's requirements too and the image is bound at its
+        // start, as the buffer is; the buffer (which frees it) outlives the image (dropped
         // first, as the struct orders them).
-        unsafe {
-            d.bind_buffer_memory(buffer.raw, allocation.memory(), allocation.offset())
-                .map_err(vk_err("vkBindBufferMemory"))?;
-            d.bind_image_memory(image.raw, allocation.memory(), allocation.offset())
-                .map_err(vk_err("vkBindImageMemory"))?;
-        }
+        unsafe { d.bind_image_memory(image.raw, allocation.memory(), allocation.offset()) }
+            .map_err(vk_err("vkBindImageMemory"))?;
         let view_info = vk::ImageViewCreateInfo::default()
             .image(image.raw)
             .view_type(vk::ImageViewType::TYPE_2D_ARRAY)
@@ -635,7 +634,6 @@ impl AliasedBuffer {
             .subresource_range(Image::full_range(1));
         // SAFETY: the image is live and bound to memory; the view is destroyed in Drop.
         image.view = unsafe { d.create_image_view(&view_info, None) }.map_err(vk_err("vkCreateImageView"))?;
-        ctx.set_name(buffer.raw, label);
         ctx.set_name(image.raw, &image.desc.label);
         Ok(AliasedBuffer { image, buffer, layout })
     }
