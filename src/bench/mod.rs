@@ -330,7 +330,7 @@ pub fn run(ctx: Arc<Context>, plan: &Plan, out: &Path, progress: bool) -> Result
     plot::write(
         &plot_path,
         &series,
-        "median gpu ms per frame",
+        "median GPU ms per frame",
         "relative L1 error vs reference",
         plot::Join::ParetoFront,
     )

@@ -94,7 +94,14 @@ fn glyph(c: char) -> [u8; 7] {
         'x' => [0x00, 0x00, 0x11, 0x0A, 0x04, 0x0A, 0x11],
         'y' => [0x00, 0x00, 0x11, 0x11, 0x0F, 0x01, 0x0E],
         'z' => [0x00, 0x00, 0x1F, 0x02, 0x04, 0x08, 0x1F],
+        // Capitals of their own where the small letter would read wrong: "GPU" (a small g
+        // reads like a 9 in 5×7 without descenders), "Monte Carlo", "L1".
+        'C' => [0x0E, 0x11, 0x10, 0x10, 0x10, 0x11, 0x0E],
+        'G' => [0x0E, 0x11, 0x10, 0x17, 0x11, 0x11, 0x0F],
         'L' => [0x10, 0x10, 0x10, 0x10, 0x10, 0x10, 0x1F],
+        'M' => [0x11, 0x1B, 0x15, 0x15, 0x11, 0x11, 0x11],
+        'P' => [0x1E, 0x11, 0x11, 0x1E, 0x10, 0x10, 0x10],
+        'U' => [0x11, 0x11, 0x11, 0x11, 0x11, 0x11, 0x0E],
         '.' => [0x00, 0x00, 0x00, 0x00, 0x00, 0x0C, 0x0C],
         '-' => [0x00, 0x00, 0x00, 0x1F, 0x00, 0x00, 0x00],
         '(' => [0x02, 0x04, 0x08, 0x08, 0x08, 0x04, 0x02],
@@ -345,6 +352,20 @@ mod tests {
         // Four times the x, four times the first point's y.
         assert_eq!(guide, Some(((10.0, 4.0), (40.0, 16.0))));
         assert_eq!(proportional(&[(3.0, 1.0)]).1, None);
+    }
+
+    #[test]
+    fn the_capitals_of_the_labels_are_their_own_glyphs() {
+        // "GPU ms" drawn with the small letters read like "9pu ms": each capital the labels
+        // use has a glyph of its own, unlike the small letter's and every digit's.
+        for c in ['C', 'G', 'L', 'M', 'P', 'U'] {
+            let g = glyph(c);
+            assert_ne!(g, [0; 7], "{c} has no glyph");
+            assert_ne!(g, glyph(c.to_ascii_lowercase()), "{c} is drawn as its small letter");
+            for d in '0'..='9' {
+                assert_ne!(g, glyph(d), "{c} is drawn as {d}");
+            }
+        }
     }
 
     #[test]

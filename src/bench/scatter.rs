@@ -93,8 +93,8 @@ pub fn run(ctx: Arc<Context>, plan: &ScatterPlan, out: &Path, progress: bool) ->
     plot::write(
         &plot_path,
         &series,
-        "gpu ms per render",
-        "radial profile rel. L1 vs monte carlo (mean)",
+        "GPU ms per render",
+        "radial profile rel. L1 vs Monte Carlo (mean)",
         plot::Join::ParetoFront,
     )
     .map_err(write_err(&plot_path))?;
