@@ -558,11 +558,15 @@ fn acc_level(m: u32) -> AccLevel {
     return AccLevel(level_offset(m), level_size(m).x, vec2<u32>(0u));
 }
 
-// Index of the first channel of texel q of level m of light slot `slot` (the others follow
-// a layer apart).
+// Index in `light_acc` of channel ch of texel q of level l of light slot `slot` (a channel's
+// words lie a layer after the one before's).
+fn acc_index(slot: u32, ch: u32, l: AccLevel, q: vec2<u32>) -> u32 {
+    return (slot * P.tiles.w + ch) * P.deposits.y + l.start + q.y * l.row + q.x;
+}
+
+// Index of the first channel of texel q of level m of light slot `slot`.
 fn acc_texel(slot: u32, m: u32, q: vec2<u32>) -> u32 {
-    let l = acc_level(m);
-    return slot * P.tiles.w * P.deposits.y + l.start + q.y * l.row + q.x;
+    return acc_index(slot, 0u, acc_level(m), q);
 }
 
 // Whether texel q of level m covers any pixel of the rect (the only texels cleared and read).
@@ -633,8 +637,9 @@ fn deposit(slot: u32, c: vec2<f32>, w_in: vec2<f32>, w_min: f32, amount: vec3<f3
     // Level texels hold the light averaged over their s² pixels.
     let a = amount / (s * s);
     // The level's first texel and row length, once for the four.
-    let base = acc_texel(slot, m, vec2<u32>(0u));
-    let row = acc_level(m).row;
+    let level = acc_level(m);
+    let base = acc_index(slot, 0u, level, vec2<u32>(0u));
+    let row = level.row;
     for (var n = 0u; n < 4u; n++) {
         let o = vec2<u32>(n & 1u, n >> 1u);
         let q = vec2<i32>(q0) + vec2<i32>(o);
@@ -653,11 +658,10 @@ fn deposit(slot: u32, c: vec2<f32>, w_in: vec2<f32>, w_min: f32, amount: vec3<f3
 // with `ACC_IMAGE` (which a CPU driver gathers for all invocations at once), else an atomic
 // load (which it makes invocation by invocation).
 fn acc_channel(slot: u32, ch: u32, l: AccLevel, q: vec2<u32>) -> u32 {
-    let layer = slot * P.tiles.w + ch;
     if (ACC_IMAGE) {
-        return textureLoad(light_acc_tex, vec2<i32>(l.origin + q), i32(layer)).x;
+        return textureLoad(light_acc_tex, vec2<i32>(l.origin + q), i32(slot * P.tiles.w + ch)).x;
     }
-    return atomicLoad(&light_acc[layer * P.deposits.y + l.start + q.y * l.row + q.x]);
+    return atomicLoad(&light_acc[acc_index(slot, ch, l, q)]);
 }
 
 // Light and direction sums at texel q of level l of slot `slot` (saturated sums read as the

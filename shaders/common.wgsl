@@ -18,7 +18,7 @@ override BEAMS: bool = true;                // light transport: forward beams (t
 override F32_STATE: bool = false;           // light, colour and medium state in 32-bit floats
 override DEBUG_VIEW: u32 = 0u;              // 0 image, 1 light, 2 light direction, 3 concentration, 4 medium
 override SCATTER: bool = false;             // multiple scattering, spread mode (beams without refraction)
-override ACC_IMAGE: bool = false;         // the deposited light is read through light_acc_tex
+override ACC_IMAGE: bool = false;           // the deposited light is read through light_acc_tex
 override SAMPLED_LAYERS: bool = false;      // no orientation volume: the layers' gradient from six samples
 // Safeguards switched off, one bit each (SG_* below). Always 0 in renders; tests set single
 // bits to show that each safeguard is needed. Constant-folded like the features above.
@@ -165,7 +165,7 @@ const VIEW_MEDIUM: u32 = 2u;
 // The beams' rgb power (relative to a plane-0 cell) by region (`load_beam_power`): regions 0
 // and 1 the halves, from 2 on the power before the segment to a plane (`front_power_region`).
 @group(0) @binding(16) var beam_power: texture_storage_2d_array<rg32uint, read_write>;
-// Light deposited on the planes in turn (fixed point, see `ACC_SCALE`; `atlas_index`).
+// Light deposited on the planes in turn (fixed point, see `ACC_SCALE`; `acc_level`).
 @group(0) @binding(17) var<storage, read_write> light_acc: array<atomic<u32>>;
 // With `ACC_IMAGE`: the same memory as `light_acc`, a linear image whose layers are its
 // slots' channels, which the view reads (a 1×1 placeholder otherwise).

@@ -416,7 +416,6 @@ impl Context {
             .unwrap_or(0)
     }
 
-    /// Nanoseconds per timestamp tick.
     /// Whether the device is a CPU driver (lavapipe), whose shaders run the invocations of a
     /// batch in SIMD lanes: it gathers texel fetches, and loads a storage buffer at an
     /// address that varies between them invocation by invocation.
@@ -424,6 +423,7 @@ impl Context {
         self.properties.device_type == vk::PhysicalDeviceType::CPU
     }
 
+    /// Nanoseconds per timestamp tick.
     pub fn timestamp_period_ns(&self) -> f64 {
         self.properties.limits.timestamp_period as f64
     }

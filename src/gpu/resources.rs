@@ -534,7 +534,7 @@ fn linear_layout_of(ctx: &Context, image: vk::Image, layers: u32) -> Option<Line
 
 impl AliasedBuffer {
     /// Whether the device can read a linear 2D array storage image of `format` this large.
-    fn supported(ctx: &Context, format: vk::Format, width: u32, height: u32, layers: u32) -> bool {
+    pub fn supported(ctx: &Context, format: vk::Format, width: u32, height: u32, layers: u32) -> bool {
         // SAFETY: plain queries on a valid physical device.
         let features =
             unsafe { ctx.instance.get_physical_device_format_properties(ctx.physical, format) }.linear_tiling_features;

@@ -55,7 +55,8 @@ fn light_list_slot(parity: u32, offset: u32, list: u32) -> u64 {
 /// Bytes the light of the planes a view pass spans may take: the beams' power, eight planes
 /// up to 1024²; refracted beams' deposits, eight planes up to the viewer's full level
 /// (644×768) and at 1024² eight where the light is grey, six where the medium colours it
-/// (rgb). The deposits are one storage buffer, and 128 MiB is the least storage buffer range
+/// (rgb; five where a CPU driver reads them through an image, whose atlas is a seventh
+/// larger: `atlas_size`). The deposits are one storage buffer, and 128 MiB is the least storage buffer range
 /// Vulkan allows a device. A view pass per plane loads and stores every ray's record on every
 /// plane: with 48 MiB (one plane per pass at 1024² in rgb, four at 644×768) the CT head's
 /// view passes took 19–20 s at 1024² against 10.4 s with five planes per pass, and 6.0–6.3 s
@@ -228,8 +229,8 @@ fn pyramid_texels(w: u32, h: u32, levels: u32) -> u64 {
 
 /// Width and height of the atlas of a `w`×`h` image's pyramid of `levels` levels (at least
 /// two): level 0 at its corner, the coarser levels stacked in a column to its right
-/// (`level_origin` in beams.wgsl). An eighth more texels than the pyramid (the column's
-/// lower quarter is mostly empty).
+/// (`level_origin` in beams.wgsl). A seventh more texels than the pyramid (3/2 of level 0's
+/// against 21/16: the column's lower quarter is mostly empty).
 fn atlas_size(w: u32, h: u32, levels: u32) -> (u32, u32) {
     let column: u32 = (1..levels).map(|m| h.div_ceil(1 << m)).sum();
     (w + w.div_ceil(2), h.max(column))
@@ -248,7 +249,7 @@ pub(super) fn deposit_image(ctx: &Context, features: &Features, req: &RenderRequ
     }
     let levels = if features.scatter { SCATTER_LEVELS } else { ACC_LEVELS };
     let (w, h) = atlas_size(req.width, req.height, levels);
-    AliasedBuffer::layout(ctx, vk::Format::R32_UINT, w, h, MAX_DEPOSIT_LAYERS).is_some()
+    AliasedBuffer::supported(ctx, vk::Format::R32_UINT, w, h, MAX_DEPOSIT_LAYERS)
 }
 
 /// Whether the beams deposit their light in the ring `light_acc` (refraction, the spread
