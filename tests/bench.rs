@@ -352,3 +352,67 @@ fn tiny_scatter_bench_adds_the_lattice_light_to_the_beams() {
     assert!(image::open(&report.plot).is_ok());
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn the_gpu_bench_script_gathers_the_device_and_both_speed_tables() {
+    // `.ci/gpu-bench` is what a machine with a GPU runs; here its QUICK mode on lavapipe, so
+    // that the script cannot rot between the rare runs on a GPU.
+    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/.ci/gpu-bench");
+    let dir = std::env::temp_dir().join(format!("caustica-gpu-bench-test-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let run = |binary: &str| {
+        std::process::Command::new("bash")
+            .arg(script)
+            .arg(&dir)
+            .env("QUICK", "1")
+            .env("CAUSTICA", binary)
+            .output()
+            .expect("run bash")
+    };
+    let missing = run("/nonexistent/caustica");
+    let stderr = String::from_utf8_lossy(&missing.stderr);
+    assert!(!missing.status.success(), "a missing binary must fail: {stderr}");
+    assert!(
+        stderr.contains("no caustica binary at /nonexistent/caustica"),
+        "{stderr}"
+    );
+
+    let out = run(env!("CARGO_BIN_EXE_caustica"));
+    let log = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(out.status.success(), "{log}");
+    let summary = std::fs::read_to_string(dir.join("summary.md")).expect("summary.md written");
+    // The device list, then the goal's table (supernova alone) and the scaling table (at
+    // least the two built-in scenes), each with a row per viewport and the fit.
+    assert!(summary.contains("\n[0] "), "no device line:\n{summary}");
+    let goal = summary.find("## goal:").expect("goal section");
+    let scaling = summary.find("## scaling:").expect("scaling section");
+    assert!(goal < scaling, "{summary}");
+    let (goal_text, scaling_text) = (&summary[goal..scaling], &summary[scaling..]);
+    // A row per viewport, 8² (the fixed cost), 16² and 32², and the fit's row.
+    let rows = |text: &str, scene: &str| text.matches(&format!("| {scene} |")).count();
+    assert_eq!(rows(goal_text, "supernova"), 4, "{goal_text}");
+    assert_eq!(
+        rows(goal_text, "ball-lens"),
+        0,
+        "the goal is the supernova alone:\n{goal_text}"
+    );
+    for size in ["| 8² |", "| 16² |", "| 32² |"] {
+        assert!(
+            goal_text.contains(size) && scaling_text.contains(size),
+            "{size}:\n{summary}"
+        );
+    }
+    for scene in ["ball-lens", "supernova"] {
+        assert_eq!(rows(scaling_text, scene), 4, "{scene} in:\n{scaling_text}");
+    }
+    for run in ["goal", "scaling"] {
+        for file in ["speed.md", "speed.csv", "speed-fit.csv", "speed.png"] {
+            assert!(dir.join(run).join(file).is_file(), "{run}/{file} missing");
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
