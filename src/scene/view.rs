@@ -35,11 +35,13 @@ pub const MAX_BEAMS_PER_PIXEL: f32 = 2.0;
 /// smaller than that. Refracted light is bent by an index field that is trilinear between
 /// voxels, and beams much finer than it resolve little more. The CT head's full-effects render
 /// at 512² (2.1 plane-0 pixels per voxel) against one with four beams per voxel at Δs = ¼:
-/// relative L1 0.0470 at 2, 0.0468 at 1.5 and 0.0471 at 1.25 beams per voxel. The glass ball
-/// of `bench --light` (R = 16, two texels per voxel) against the exact trace of the
+/// relative L1 0.0470 at 2, 0.0468 at 1.5, 0.0471 at 1.25 and 0.0479 at 1 beam per voxel. The
+/// glass ball of `bench --light` (R = 16, two texels per voxel) against the exact trace of the
 /// continuous ball, mean relative L1 over its five planes at Δs 1, ½ and ¼: 0.120, 0.116 and
-/// 0.107 at 2 beams per voxel, 0.109, 0.113 and 0.109 at 1.5. The viewer's full frame of
-/// the CT head (644×768): 12.4–13.2 s at 2, 9.4–9.7 s at 1.5.
+/// 0.107 at 2 beams per voxel, 0.109, 0.113 and 0.109 at 1.5, 0.115, 0.119 and 0.123 at 1.25,
+/// 0.121, 0.119 and 0.114 at 1: below 1.5 the caustic gets worse (the plane nearest the focus
+/// most), while the CT head's light pass at 512² takes 29 % less at 1.25. The viewer's full
+/// frame of the CT head (644×768): 12.4–13.2 s at 2, 9.4–9.7 s at 1.5.
 pub const REFRACTED_BEAMS_PER_VOXEL: f32 = 1.5;
 
 /// How many times coarser per axis than `beams_per_texel` asks (in pixels at the volume's
