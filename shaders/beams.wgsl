@@ -112,11 +112,10 @@ fn pre_entry_beam(ij: vec2<u32>, plane: u32, exact: bool) -> Beam {
         let d = light_direction(b.v);
         let steps = select(0u, plane, exact);
         for (var j = 1u; j <= steps; j++) {
-            let q = vec3<f32>(p.xy, plane_z(j - 1u));
-            p = q + d * ((plane_z(j) - q.z) / d.z);
+            p = straight_to(vec3<f32>(p.xy, plane_z(j - 1u)), d, plane_z(j));
         }
         if (!exact) {
-            p = p + d * ((z - p.z) / d.z);
+            p = straight_to(p, d, z);
         }
     }
     b.pos = vec3<f32>(p.xy, z);
@@ -481,8 +480,7 @@ fn store_beam(ij: vec2<u32>, half: u32, plane: u32, b: Beam) {
 // Position on the plane at depth z of a beam last seen at `pos` with direction `v`: the
 // straight segment (drift) of the leapfrog step.
 fn drift(pos: vec3<f32>, v: vec3<f32>, z: f32) -> vec3<f32> {
-    let d = light_direction(v);
-    return pos + d * ((z - pos.z) / d.z);
+    return straight_to(pos, light_direction(v), z);
 }
 
 // Deposited light is a pyramid of ACC_LEVELS levels per plane: level m has texels of 2^m

@@ -479,9 +479,16 @@ fn light_direction(v: vec3<f32>) -> vec3<f32> {
     return d;
 }
 
+// Where the straight line through p along d (d.z > 0) crosses the plane at depth z. Every
+// straight step from plane to plane, of light and of view rays, takes this one arithmetic, so
+// that steps taken one at a time in different passes land on the same bits.
+fn straight_to(p: vec3<f32>, d: vec3<f32>, z: f32) -> vec3<f32> {
+    return p + d * ((z - p.z) / d.z);
+}
+
 // Where the unrefracted light through plane-0 point `p0` crosses the plane at depth z.
 fn unrefracted(p0: vec3<f32>, z: f32) -> vec3<f32> {
-    return p0 + P.light_dir.xyz * ((z - p0.z) / P.light_dir.z);
+    return straight_to(p0, P.light_dir.xyz, z);
 }
 
 // The light grid: plane-0 cells (stride pixels wide, origin beam_origin.xy in pixel-edge

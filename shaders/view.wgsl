@@ -355,8 +355,7 @@ fn view_segment(px: vec2<u32>, k: u32, tile: u32, r: ptr<function, ViewRay>) -> 
         // lands where stepping would have put it, to the bit, whichever planes were skipped
         // (one jump rounds differently, and refraction at a grazing rim amplifies that).
         for (var j = u32(aux.z) - 1u; j + 1u < k; j++) {
-            let a = vec3<f32>(x0.xy, plane_z(j));
-            x0 = a + dir * ((plane_z(j + 1u) - a.z) / dir.z);
+            x0 = straight_to(vec3<f32>(x0.xy, plane_z(j)), dir, plane_z(j + 1u));
         }
         x0 = vec3<f32>(x0.xy, plane_z(k - 1u));
     }
@@ -367,7 +366,7 @@ fn view_segment(px: vec2<u32>, k: u32, tile: u32, r: ptr<function, ViewRay>) -> 
         return false;
     }
     // Eq. 8 position update, ending on the next plane (Algorithm 1, line 32).
-    let x1 = x0 + dir * ((z - x0.z) / dir.z);
+    let x1 = straight_to(x0, dir, z);
     let value1 = sample_value(x1);
     let value0 = select(aux.y, value1, skipped);
     let ratio = length(x1 - x0) / ds;
