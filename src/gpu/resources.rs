@@ -410,8 +410,16 @@ impl Image {
         // anything else; it is freed after the image in Drop.
         unsafe { d.bind_image_memory(image.raw, allocation.memory(), allocation.offset()) }
             .map_err(vk_err("vkBindImageMemory"))?;
+        image.create_view()?;
+        Ok(image)
+    }
+
+    /// Creates the view of the whole image (3D, 2D array where `desc.layers` is set, else 2D)
+    /// once the image is bound to memory, and names both.
+    fn create_view(&mut self) -> Result<(), GpuError> {
+        let desc = &self.desc;
         let view_info = vk::ImageViewCreateInfo::default()
-            .image(image.raw)
+            .image(self.raw)
             .view_type(if desc.dim3 {
                 vk::ImageViewType::TYPE_3D
             } else if desc.layers.is_some() {
@@ -422,10 +430,11 @@ impl Image {
             .format(desc.format)
             .subresource_range(Self::full_range(desc.mip_levels));
         // SAFETY: the image is live and bound to memory; the view is destroyed in Drop.
-        image.view = unsafe { d.create_image_view(&view_info, None) }.map_err(vk_err("vkCreateImageView"))?;
-        ctx.set_name(image.raw, &image.desc.label);
-        ctx.set_name(image.view, &format!("{} view", image.desc.label));
-        Ok(image)
+        self.view =
+            unsafe { self.ctx.device.create_image_view(&view_info, None) }.map_err(vk_err("vkCreateImageView"))?;
+        self.ctx.set_name(self.raw, &desc.label);
+        self.ctx.set_name(self.view, &format!("{} view", desc.label));
+        Ok(())
     }
 
     pub(crate) fn full_range(mip_levels: u32) -> vk::ImageSubresourceRange {
@@ -627,14 +636,7 @@ impl AliasedBuffer {
         // first, as the struct orders them).
         unsafe { d.bind_image_memory(image.raw, allocation.memory(), allocation.offset()) }
             .map_err(vk_err("vkBindImageMemory"))?;
-        let view_info = vk::ImageViewCreateInfo::default()
-            .image(image.raw)
-            .view_type(vk::ImageViewType::TYPE_2D_ARRAY)
-            .format(format)
-            .subresource_range(Image::full_range(1));
-        // SAFETY: the image is live and bound to memory; the view is destroyed in Drop.
-        image.view = unsafe { d.create_image_view(&view_info, None) }.map_err(vk_err("vkCreateImageView"))?;
-        ctx.set_name(image.raw, &image.desc.label);
+        image.create_view()?;
         Ok(AliasedBuffer { image, buffer, layout })
     }
 }

@@ -48,7 +48,7 @@ pub struct Params {
     /// view sample reads it, those in a voxel (`beams_unscattered_through`,
     /// `beams_light_through`); z: slots of deposited light; w unused.
     pub sweep: [u32; 4],
-    /// The atlas of deposited light (`atlas_index` in beams.wgsl): words per row, words per
+    /// The atlas of deposited light (`acc_level` in beams.wgsl): words per row, words per
     /// layer (a channel of a slot); the rest unused.
     pub deposits: [u32; 4],
 }

@@ -247,9 +247,18 @@ pub(super) fn deposit_image(ctx: &Context, features: &Features, req: &RenderRequ
     if !ctx.is_cpu() || !deposit_ring(features) {
         return false;
     }
-    let levels = if features.scatter { SCATTER_LEVELS } else { ACC_LEVELS };
-    let (w, h) = atlas_size(req.width, req.height, levels);
+    let (w, h) = atlas_size(req.width, req.height, deposit_levels(features));
     AliasedBuffer::supported(ctx, vk::Format::R32_UINT, w, h, MAX_DEPOSIT_LAYERS)
+}
+
+/// Levels of the pyramid of deposited light: the spread mode's scattered light spreads
+/// further (`acc_levels` in beams.wgsl).
+fn deposit_levels(features: &Features) -> u32 {
+    if features.scatter {
+        SCATTER_LEVELS
+    } else {
+        ACC_LEVELS
+    }
 }
 
 /// Whether the beams deposit their light in the ring `light_acc` (refraction, the spread
@@ -692,7 +701,7 @@ pub(super) fn run(
     layout.unseen_light_ends = !req.keep_unseen_light;
     layout.skip_empty_view_tiles = !req.step_empty_view_tiles;
     layout.refraction = features.refraction;
-    let levels = if features.scatter { SCATTER_LEVELS } else { ACC_LEVELS };
+    let levels = deposit_levels(&features);
     layout.deposits = DepositLayout::packed(view.width, view.height, levels);
     if features.deposit_image {
         let (w, h) = atlas_size(view.width, view.height, levels);
