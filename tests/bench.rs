@@ -35,6 +35,11 @@ fn tiny_bench_writes_table_csv_and_plot() {
         Setting {
             label: "viewport 64²".into(),
             size: 64,
+            ..base.clone()
+        },
+        Setting {
+            label: "beams per texel 0.5".into(),
+            beams_per_texel: 0.5,
             ..base
         },
     ];
@@ -50,15 +55,15 @@ fn tiny_bench_writes_table_csv_and_plot() {
     let dir = std::env::temp_dir().join(format!("caustica-bench-test-{}", std::process::id()));
     let report = bench::run(gpu.ctx.clone(), &plan, &dir, false).expect("bench runs");
     gpu.assert_clean();
-    assert_eq!(report.rows.len(), 3);
+    assert_eq!(report.rows.len(), 4);
     // CSV: a header and one line per setting with finite, positive measurements.
     let csv = std::fs::read_to_string(&report.csv).unwrap();
     let lines: Vec<&str> = csv.lines().collect();
-    assert_eq!(lines.len(), 4, "{csv}");
+    assert_eq!(lines.len(), 5, "{csv}");
     assert!(lines[0].starts_with("scene,setting,sample_distance,viewport"));
     for line in &lines[1..] {
         let fields: Vec<&str> = line.split(',').collect();
-        assert_eq!(fields.len(), 16, "{line}");
+        assert_eq!(fields.len(), 19, "{line}");
         let number = |i: usize| {
             fields[i]
                 .parse::<f64>()
@@ -72,10 +77,26 @@ fn tiny_bench_writes_table_csv_and_plot() {
     }
     // Half the sample distance means about half the planes.
     assert!(report.rows[1].planes < report.rows[0].planes);
+    // Half the beams per texel and axis means about a quarter of the light grid's cells (its
+    // extent is rounded up to whole cells, which weighs more in the coarser grid), and the
+    // CSV gives the setting and the grid.
+    let cells = |r: &bench::Row| f64::from(r.light_grid[0]) * f64::from(r.light_grid[1]);
+    let ratio = cells(&report.rows[3]) / cells(&report.rows[0]);
+    eprintln!(
+        "light grids {:?} and {:?}: ratio {ratio:.3}",
+        report.rows[0].light_grid, report.rows[3].light_grid
+    );
+    assert!(
+        (0.2..0.33).contains(&ratio),
+        "light grid cells at half the beams per texel: ratio {ratio}"
+    );
+    let last: Vec<&str> = lines[4].split(',').collect();
+    assert_eq!(last[16], "0.5", "{}", lines[4]);
+    assert_eq!(last[17], report.rows[3].light_grid[0].to_string(), "{}", lines[4]);
     // Markdown: the table with a row per setting.
     let md = std::fs::read_to_string(&report.markdown).unwrap();
     assert!(md.contains("| scene | setting |"));
-    assert_eq!(md.lines().filter(|l| l.starts_with("| ball-lens |")).count(), 3);
+    assert_eq!(md.lines().filter(|l| l.starts_with("| ball-lens |")).count(), 4);
     // The plot decodes and has the first series' colour in it.
     let png = image::open(&report.plot).expect("plot is a PNG").to_rgb8();
     assert_eq!(png.dimensions(), (960, 600));

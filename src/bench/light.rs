@@ -59,6 +59,10 @@ pub fn transport_variants() -> Vec<Variant> {
     use crate::scene::LightTransport;
     vec![
         Variant::new("beams", |s| s.quality.light_transport = LightTransport::Beams),
+        Variant::new("beams, ½² per texel", |s| {
+            s.quality.light_transport = LightTransport::Beams;
+            s.quality.beams_per_texel = 0.5;
+        }),
         Variant::new("beams, 2² per texel", |s| {
             s.quality.light_transport = LightTransport::Beams;
             s.quality.beams_per_texel = 2.0;

@@ -34,7 +34,7 @@ pub fn write_markdown(path: &Path, rows: &[Row], device: &str, plan: &Plan) -> R
     let _ = writeln!(
         s,
         "Device: {device}. Volumes: built-in scenes at {} voxels along the longest axis, highlights {}. \
-         GPU time: median (min–max) of {} frames from timestamp queries. Error: against the reference \
+         GPU time: median (min–max) of {} frames after an untimed one, from timestamp queries. Error: against the reference \
          renderer at {}² ({} rays/voxel², RK4 steps {} voxel light / {} voxel view, {}² rays per pixel), \
          larger viewports box-filtered to that size. ★ = on the scene's Pareto front.\n",
         plan.resolution,
@@ -46,14 +46,14 @@ pub fn write_markdown(path: &Path, rows: &[Row], device: &str, plan: &Plan) -> R
         r.view_step_voxels,
         r.samples_per_axis
     );
-    s.push_str("| scene | setting | Δs | viewport | filter | precision | caustics | gradient | planes | GPU ms | rel. L1 | RMSE | peak Δ px | |\n");
-    s.push_str("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    s.push_str("| scene | setting | Δs | viewport | filter | precision | caustics | gradient | beams per texel (light grid) | planes | GPU ms | rel. L1 | RMSE | peak Δ px | |\n");
+    s.push_str("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     let front = front_rows(rows);
     for (row, star) in rows.iter().zip(front) {
         let t = &row.setting;
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {}² | {} | {} | {} | {} | {} | {:.1} ({:.1}–{:.1}) | {:.4} | {:.4} | {:.1} | {} |",
+            "| {} | {} | {} | {}² | {} | {} | {} | {} | {} ({}×{}) | {} | {:.1} ({:.1}–{:.1}) | {:.4} | {:.4} | {:.1} | {} |",
             row.scene,
             t.label,
             t.sample_distance,
@@ -62,6 +62,9 @@ pub fn write_markdown(path: &Path, rows: &[Row], device: &str, plan: &Plan) -> R
             t.precision.name(),
             on(t.intensity_correction),
             t.gradient.name(),
+            t.beams_per_texel,
+            row.light_grid[0],
+            row.light_grid[1],
             row.planes,
             row.ms_median,
             row.ms_min,
@@ -77,14 +80,14 @@ pub fn write_markdown(path: &Path, rows: &[Row], device: &str, plan: &Plan) -> R
 
 pub fn write_csv(path: &Path, rows: &[Row]) -> Result<(), String> {
     let mut s = String::from(
-        "scene,setting,sample_distance,viewport,light_filter,precision,intensity_correction,gradient,planes,ms_median,ms_min,ms_max,rel_l1,rmse,peak_px,pareto\n",
+        "scene,setting,sample_distance,viewport,light_filter,precision,intensity_correction,gradient,planes,ms_median,ms_min,ms_max,rel_l1,rmse,peak_px,pareto,beams_per_texel,light_grid_x,light_grid_y\n",
     );
     let front = front_rows(rows);
     for (row, star) in rows.iter().zip(front) {
         let t = &row.setting;
         let _ = writeln!(
             s,
-            "{},\"{}\",{},{},{},{},{},{},{},{:.3},{:.3},{:.3},{:.6},{:.6},{:.2},{}",
+            "{},\"{}\",{},{},{},{},{},{},{},{:.3},{:.3},{:.3},{:.6},{:.6},{:.2},{},{},{},{}",
             row.scene,
             t.label,
             t.sample_distance,
@@ -100,7 +103,10 @@ pub fn write_csv(path: &Path, rows: &[Row]) -> Result<(), String> {
             row.error.rel_l1,
             row.error.rmse,
             row.error.peak_px,
-            star
+            star,
+            t.beams_per_texel,
+            row.light_grid[0],
+            row.light_grid[1]
         );
     }
     std::fs::write(path, s).map_err(|e| e.to_string())
