@@ -5,7 +5,7 @@ use egui::{Event, Key, Modifiers, PointerButton, Pos2, RawInput, Rect, Vec2};
 
 use super::panel::{Action, ViewState};
 use super::tf_model::Function;
-use crate::scene::{builtin, VolumeSource};
+use crate::scene::{builtin, LightTransport, MultipleScattering, VolumeSource, MIN_BEAMS_PER_TEXEL};
 
 struct Harness {
     ctx: egui::Context,
@@ -203,12 +203,19 @@ fn viewport_drag_orbits_and_wheel_zooms() {
 #[test]
 fn checkbox_screenshot_and_save_shortcuts() {
     let mut h = Harness::with_screen(Vec2::new(1024.0, 2000.0));
+    // The intensity law is the backward transport's: with the beams (the default) its
+    // checkbox is off limits, with the backward transport it toggles.
     let on = h.state.scene.quality.intensity_correction;
-    h.click(
-        h.rect("caustic correction").left_center() + Vec2::new(8.0, 0.0),
-        PointerButton::Primary,
-    );
+    let checkbox = h.rect("caustic correction").left_center() + Vec2::new(8.0, 0.0);
+    h.click(checkbox, PointerButton::Primary);
+    assert_eq!(h.state.scene.quality.intensity_correction, on, "no effect with beams");
+    h.click(h.rect("transport backward").center(), PointerButton::Primary);
+    assert_eq!(h.state.scene.quality.light_transport, LightTransport::Backward);
+    h.frame(vec![]);
+    h.click(checkbox, PointerButton::Primary);
     assert_eq!(h.state.scene.quality.intensity_correction, !on);
+    h.click(h.rect("transport beams").center(), PointerButton::Primary);
+    assert_eq!(h.state.scene.quality.light_transport, LightTransport::Beams);
     let a = h.click(h.rect("screenshot").center(), PointerButton::Primary);
     assert!(
         matches!(
@@ -232,6 +239,31 @@ fn checkbox_screenshot_and_save_shortcuts() {
     h.key(Key::F1, Modifiers::NONE);
     assert!(h.state.show_help);
     assert_eq!(h.key(Key::Escape, Modifiers::NONE), vec![Action::Quit]);
+}
+
+#[test]
+fn the_beams_slider_sets_the_light_grid_and_rests_with_the_backward_transport() {
+    let mut h = Harness::with_screen(Vec2::new(1024.0, 2000.0));
+    assert_eq!(h.state.scene.quality.beams_per_texel, 1.0);
+    // The slider's left end is the fewest beams (logarithmic: a few pixels in, still under ½).
+    let left = h.rect("beams per pixel").left_center() + Vec2::new(3.0, 0.0);
+    h.click(left, PointerButton::Primary);
+    let b = h.state.scene.quality.beams_per_texel;
+    assert!((MIN_BEAMS_PER_TEXEL..0.5).contains(&b), "{b}");
+    h.click(h.rect("transport backward").center(), PointerButton::Primary);
+    h.frame(vec![]);
+    let right = h.rect("beams per pixel").left_center() + Vec2::new(60.0, 0.0);
+    h.click(right, PointerButton::Primary);
+    assert_eq!(
+        h.state.scene.quality.beams_per_texel, b,
+        "the backward transport has no beams"
+    );
+    // A scene that asks for the spread mode of multiple scattering keeps the beams it needs.
+    let mut scene = builtin("ball-lens").unwrap().scene;
+    scene.quality.multiple_scattering = MultipleScattering::Spread;
+    let mut h = Harness::with_scene(scene, Vec2::new(1024.0, 2000.0));
+    h.click(h.rect("transport backward").center(), PointerButton::Primary);
+    assert_eq!(h.state.scene.quality.light_transport, LightTransport::Beams);
 }
 
 #[test]

@@ -8,7 +8,10 @@ use super::super::orientation;
 use super::super::tf_model::Function;
 use super::super::widgets;
 use super::{Action, ViewState};
-use crate::scene::{ClipPlane, Environment, Projection, Toggle, MAX_PITCH_DEG};
+use crate::scene::{
+    ClipPlane, Environment, LightTransport, MultipleScattering, Projection, Toggle, MAX_BEAMS_PER_TEXEL, MAX_PITCH_DEG,
+    MIN_BEAMS_PER_TEXEL,
+};
 
 impl ViewState {
     /// The side panel: status, help, then one collapsible section per part of the scene.
@@ -208,7 +211,44 @@ impl ViewState {
                 ui.selectable_value(&mut q.refraction, t, name);
             }
         });
-        let r = ui.checkbox(&mut q.intensity_correction, "caustic correction (intensity law)");
+        // The light's transport and the knob each has: the beams' grid (their caustics come
+        // from their density, and the light pass's time follows their count) or the backward
+        // scheme's intensity law.
+        // The spread mode of multiple scattering rides on the beams (`Scene::validate`).
+        let spread = q.multiple_scattering == MultipleScattering::Spread;
+        ui.horizontal(|ui| {
+            ui.label("light");
+            for (t, name, key) in [
+                (LightTransport::Beams, "beams", "transport beams"),
+                (LightTransport::Backward, "backward", "transport backward"),
+            ] {
+                let enabled = t == LightTransport::Beams || !spread;
+                let r = ui
+                    .add_enabled(enabled, egui::Button::selectable(q.light_transport == t, name))
+                    .on_disabled_hover_text("the spread mode of multiple scattering needs the beams");
+                if r.clicked() {
+                    q.light_transport = t;
+                }
+                self.rects.insert(key, r.rect);
+            }
+        });
+        let beams = q.light_transport == LightTransport::Beams;
+        let r = ui.add_enabled(
+            beams,
+            egui::Slider::new(&mut q.beams_per_texel, MIN_BEAMS_PER_TEXEL..=MAX_BEAMS_PER_TEXEL)
+                .logarithmic(true)
+                .text("beams per pixel"),
+        );
+        let r = r.on_hover_text(
+            "per pixel and axis: ½ traces a quarter of the beams, a faster light pass with coarser caustics",
+        );
+        self.rects.insert("beams per pixel", r.rect);
+        let r = ui
+            .add_enabled(
+                !beams,
+                egui::Checkbox::new(&mut q.intensity_correction, "caustic correction (intensity law)"),
+            )
+            .on_disabled_hover_text("beams make their caustics from their density");
         self.rects.insert("caustic correction", r.rect);
         let q = &mut self.scene.quality;
         ui.checkbox(&mut q.light_filter, "light filtering (soft light)");
