@@ -40,6 +40,11 @@ fn tiny_bench_writes_table_csv_and_plot() {
         Setting {
             label: "beams per texel 0.5".into(),
             beams_per_texel: 0.5,
+            ..base.clone()
+        },
+        Setting {
+            label: "backward transport".into(),
+            light_transport: caustica::scene::LightTransport::Backward,
             ..base
         },
     ];
@@ -55,15 +60,15 @@ fn tiny_bench_writes_table_csv_and_plot() {
     let dir = std::env::temp_dir().join(format!("caustica-bench-test-{}", std::process::id()));
     let report = bench::run(gpu.ctx.clone(), &plan, &dir, false).expect("bench runs");
     gpu.assert_clean();
-    assert_eq!(report.rows.len(), 4);
+    assert_eq!(report.rows.len(), 5);
     // CSV: a header and one line per setting with finite, positive measurements.
     let csv = std::fs::read_to_string(&report.csv).unwrap();
     let lines: Vec<&str> = csv.lines().collect();
-    assert_eq!(lines.len(), 5, "{csv}");
+    assert_eq!(lines.len(), 6, "{csv}");
     assert!(lines[0].starts_with("scene,setting,sample_distance,viewport"));
     for line in &lines[1..] {
         let fields: Vec<&str> = line.split(',').collect();
-        assert_eq!(fields.len(), 19, "{line}");
+        assert_eq!(fields.len(), 20, "{line}");
         let number = |i: usize| {
             fields[i]
                 .parse::<f64>()
@@ -93,10 +98,15 @@ fn tiny_bench_writes_table_csv_and_plot() {
     let last: Vec<&str> = lines[4].split(',').collect();
     assert_eq!(last[16], "0.5", "{}", lines[4]);
     assert_eq!(last[17], report.rows[3].light_grid[0].to_string(), "{}", lines[4]);
+    // The backward transport is another renderer of the light: the CSV names it, and its
+    // image (caustics by the intensity law, not by the beams' density) is another distance
+    // from the reference.
+    assert!(lines[4].ends_with(",beams") && lines[5].ends_with(",backward"), "{csv}");
+    assert_ne!(report.rows[4].error.rel_l1, report.rows[0].error.rel_l1);
     // Markdown: the table with a row per setting.
     let md = std::fs::read_to_string(&report.markdown).unwrap();
     assert!(md.contains("| scene | setting |"));
-    assert_eq!(md.lines().filter(|l| l.starts_with("| ball-lens |")).count(), 4);
+    assert_eq!(md.lines().filter(|l| l.starts_with("| ball-lens |")).count(), 5);
     // The plot decodes and has the first series' colour in it.
     let png = image::open(&report.plot).expect("plot is a PNG").to_rgb8();
     assert_eq!(png.dimensions(), (960, 600));

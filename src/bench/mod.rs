@@ -25,7 +25,7 @@ use crate::gpu::Context;
 use crate::reference::photons::PhotonSettings;
 use crate::reference::{self, ReferenceError, ReferenceSettings};
 use crate::render::{PreparedScene, RenderError, RenderRequest, Renderer};
-use crate::scene::{builtin, Gradient, Precision, PrepareError, SceneError};
+use crate::scene::{builtin, Gradient, LightTransport, Precision, PrepareError, SceneError};
 
 pub use metrics::{compare, ImageError, Linear};
 pub use report::{write_csv, write_markdown};
@@ -70,8 +70,11 @@ pub struct Setting {
     pub size: u32,
     pub light_filter: bool,
     pub precision: Precision,
+    /// The backward transport's intensity law (the beams make their caustics from their density
+    /// and ignore it).
     pub intensity_correction: bool,
     pub gradient: Gradient,
+    pub light_transport: LightTransport,
     /// `quality.beams_per_texel`: the light grid's density, which the light pass's time
     /// follows (its cells scale with its square).
     pub beams_per_texel: f32,
@@ -88,6 +91,7 @@ impl Setting {
             precision: Precision::F16,
             intensity_correction: true,
             gradient: Gradient::Central,
+            light_transport: LightTransport::Beams,
             beams_per_texel: 1.0,
         }
     }
@@ -114,7 +118,7 @@ impl Setting {
         }
         v.push(base.with("no light filter", |s| s.light_filter = false));
         v.push(base.with("f32 buffers", |s| s.precision = Precision::F32));
-        v.push(base.with("no intensity correction", |s| s.intensity_correction = false));
+        v.push(base.with("backward transport", |s| s.light_transport = LightTransport::Backward));
         v.push(base.with("forward gradient", |s| s.gradient = Gradient::Forward));
         v
     }
@@ -219,6 +223,7 @@ fn apply(prepared: &mut PreparedScene, s: &Setting) {
     q.light_filter = s.light_filter;
     q.precision = s.precision;
     q.intensity_correction = s.intensity_correction;
+    q.light_transport = s.light_transport;
     q.gradient = s.gradient;
     q.beams_per_texel = s.beams_per_texel;
 }

@@ -4,12 +4,21 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use super::{plot::pareto_front, Plan, Row};
+use crate::scene::LightTransport;
 
 fn on(b: bool) -> &'static str {
     if b {
         "on"
     } else {
         "off"
+    }
+}
+
+/// The light's transport, and for the backward one whether its intensity law is off.
+fn light(t: &super::Setting) -> String {
+    match (t.light_transport, t.intensity_correction) {
+        (LightTransport::Backward, false) => "backward, no intensity law".into(),
+        (transport, _) => transport.name().into(),
     }
 }
 
@@ -46,7 +55,7 @@ pub fn write_markdown(path: &Path, rows: &[Row], device: &str, plan: &Plan) -> R
         r.view_step_voxels,
         r.samples_per_axis
     );
-    s.push_str("| scene | setting | Δs | viewport | filter | precision | caustics | gradient | beams per texel (light grid) | planes | GPU ms | rel. L1 | RMSE | peak Δ px | |\n");
+    s.push_str("| scene | setting | Δs | viewport | filter | precision | light | gradient | beams per texel (light grid) | planes | GPU ms | rel. L1 | RMSE | peak Δ px | |\n");
     s.push_str("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     let front = front_rows(rows);
     for (row, star) in rows.iter().zip(front) {
@@ -60,7 +69,7 @@ pub fn write_markdown(path: &Path, rows: &[Row], device: &str, plan: &Plan) -> R
             t.size,
             on(t.light_filter),
             t.precision.name(),
-            on(t.intensity_correction),
+            light(t),
             t.gradient.name(),
             t.beams_per_texel,
             row.light_grid[0],
@@ -80,14 +89,14 @@ pub fn write_markdown(path: &Path, rows: &[Row], device: &str, plan: &Plan) -> R
 
 pub fn write_csv(path: &Path, rows: &[Row]) -> Result<(), String> {
     let mut s = String::from(
-        "scene,setting,sample_distance,viewport,light_filter,precision,intensity_correction,gradient,planes,ms_median,ms_min,ms_max,rel_l1,rmse,peak_px,pareto,beams_per_texel,light_grid_x,light_grid_y\n",
+        "scene,setting,sample_distance,viewport,light_filter,precision,intensity_correction,gradient,planes,ms_median,ms_min,ms_max,rel_l1,rmse,peak_px,pareto,beams_per_texel,light_grid_x,light_grid_y,light_transport\n",
     );
     let front = front_rows(rows);
     for (row, star) in rows.iter().zip(front) {
         let t = &row.setting;
         let _ = writeln!(
             s,
-            "{},\"{}\",{},{},{},{},{},{},{},{:.3},{:.3},{:.3},{:.6},{:.6},{:.2},{},{},{},{}",
+            "{},\"{}\",{},{},{},{},{},{},{},{:.3},{:.3},{:.3},{:.6},{:.6},{:.2},{},{},{},{},{}",
             row.scene,
             t.label,
             t.sample_distance,
@@ -106,7 +115,8 @@ pub fn write_csv(path: &Path, rows: &[Row]) -> Result<(), String> {
             star,
             t.beams_per_texel,
             row.light_grid[0],
-            row.light_grid[1]
+            row.light_grid[1],
+            t.light_transport.name()
         );
     }
     std::fs::write(path, s).map_err(|e| e.to_string())
