@@ -194,6 +194,10 @@ pub struct Row {
     pub planes: u32,
     /// The light grid's cells (beams), x × y.
     pub light_grid: [u32; 2],
+    /// The scene's particles scatter light (an albedo), which the reference does not model:
+    /// its photons are absorbed, never scattered, so the renderer's scattered light reads as
+    /// error (`bench --scatter` measures it against a Monte Carlo reference that has it).
+    pub scatters: bool,
     pub ms_median: f64,
     pub ms_min: f64,
     pub ms_max: f64,
@@ -276,6 +280,7 @@ pub fn run(ctx: Arc<Context>, plan: &Plan, out: &Path, progress: bool) -> Result
     let mut rows = Vec::new();
     for name in &plan.scenes {
         let mut prepared = bench_scene(name, plan.resolution, plan.highlights)?;
+        let scatters = prepared.tf.scatters();
         if let Some(b) = &bar {
             b.set_message(format!("{name}: reference"));
         }
@@ -317,6 +322,7 @@ pub fn run(ctx: Arc<Context>, plan: &Plan, out: &Path, progress: bool) -> Result
                 setting: setting.clone(),
                 planes: frame.stats.planes,
                 light_grid: frame.stats.light_grid,
+                scatters,
                 ms_median: median(&mut times),
                 ms_min,
                 ms_max,

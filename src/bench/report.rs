@@ -84,6 +84,17 @@ pub fn write_markdown(path: &Path, rows: &[Row], device: &str, plan: &Plan) -> R
             if star { "★" } else { "" }
         );
     }
+    let mut scattering: Vec<&str> = rows.iter().filter(|r| r.scatters).map(|r| r.scene.as_str()).collect();
+    scattering.dedup();
+    if !scattering.is_empty() {
+        let _ = writeln!(
+            s,
+            "\nThe particles of {} scatter light, which the reference does not model (its photons are \
+             absorbed, never scattered): their rows count the scattered light as error. `caustica bench \
+             --scatter` measures it against a Monte Carlo reference that has it.",
+            scattering.join(", ")
+        );
+    }
     std::fs::write(path, s).map_err(|e| e.to_string())
 }
 
@@ -120,4 +131,49 @@ pub fn write_csv(path: &Path, rows: &[Row]) -> Result<(), String> {
         );
     }
     std::fs::write(path, s).map_err(|e| e.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::{ImageError, Plan, Row, Setting};
+
+    fn row(scene: &str, scatters: bool) -> Row {
+        Row {
+            scene: scene.into(),
+            setting: Setting::base(128),
+            planes: 60,
+            light_grid: [64, 64],
+            scatters,
+            ms_median: 100.0,
+            ms_min: 90.0,
+            ms_max: 110.0,
+            error: ImageError {
+                rel_l1: 0.05,
+                rmse: 0.06,
+                peak_px: 1.0,
+            },
+        }
+    }
+
+    #[test]
+    fn the_table_says_which_scenes_scatter_light_the_reference_leaves_out() {
+        let dir = std::env::temp_dir().join(format!("caustica-report-test-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("bench.md");
+        let plan = Plan::quick(vec!["ball-lens".into(), "milk-glass".into()]);
+        let rows = [
+            row("ball-lens", false),
+            row("milk-glass", true),
+            row("milk-glass", true),
+        ];
+        super::write_markdown(&path, &rows, "test", &plan).unwrap();
+        let md = std::fs::read_to_string(&path).unwrap();
+        let note: Vec<&str> = md.lines().filter(|l| l.contains("scatter light")).collect();
+        assert_eq!(note.len(), 1, "{md}");
+        assert!(note[0].starts_with("The particles of milk-glass scatter light"), "{md}");
+        super::write_markdown(&path, &rows[..1], "test", &plan).unwrap();
+        let md = std::fs::read_to_string(&path).unwrap();
+        assert!(!md.contains("scatter light"), "{md}");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }
