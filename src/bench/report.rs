@@ -15,10 +15,10 @@ fn on(b: bool) -> &'static str {
 }
 
 /// The light's transport, and for the backward one whether its intensity law is off.
-fn light(t: &super::Setting) -> String {
+fn light(t: &super::Setting) -> &'static str {
     match (t.light_transport, t.intensity_correction) {
-        (LightTransport::Backward, false) => "backward, no intensity law".into(),
-        (transport, _) => transport.name().into(),
+        (LightTransport::Backward, false) => "backward, no intensity law",
+        (transport, _) => transport.name(),
     }
 }
 
