@@ -19,14 +19,17 @@ fn main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) l
         return;
     }
     let vg = group - P.beam_grid.w;
-    if (vg == 0u && li < 4u * LIST_PLANES) {
-        // The lists' indirect arguments: one row of workgroups (x counts the tiles).
-        if (li < 3u) {
-            atomicStore(&tile_args[li * 3u + 1u], 1u);
-            atomicStore(&tile_args[li * 3u + 2u], 1u);
+    if (vg == 0u) {
+        // The lists' indirect arguments: one row of workgroups (x counts the tiles), shared
+        // out over the workgroup's invocations, however many it has.
+        for (var i = li; i < 4u * LIST_PLANES; i += TILE * TILE) {
+            if (i < 3u) {
+                atomicStore(&tile_args[i * 3u + 1u], 1u);
+                atomicStore(&tile_args[i * 3u + 2u], 1u);
+            }
+            atomicStore(&light_args[i * 3u + 1u], 1u);
+            atomicStore(&light_args[i * 3u + 2u], 1u);
         }
-        atomicStore(&light_args[li * 3u + 1u], 1u);
-        atomicStore(&light_args[li * 3u + 2u], 1u);
     }
     if (vg >= P.tiles.y) {
         return;

@@ -297,9 +297,18 @@ fn tile_steps(spans: &[[u32; 4]], ends: &[u32], planes: u32) -> u64 {
 
 /// Workgroups of the tiles pass for `view_groups` rect tiles and `light_tiles` light tiles to
 /// list: one invocation per rect tile, then one per light tile (a workgroup whose invocations
-/// have nothing to do still costs its launch on a CPU driver).
+/// have nothing to do still costs its launch on a CPU driver). Where light tiles are listed,
+/// the first `2 * VIEW_PLANES_PER_PASS` invocations after the rect tiles' also empty the
+/// lists of the pass just done (`tiles_main`), so there are at least that many, however few
+/// light tiles there are: a list left as it was kept the tiles of two passes before, and
+/// stepped them again.
 fn tile_groups(view_groups: u32, light_tiles: u32) -> u32 {
-    (view_groups + light_tiles).div_ceil(Pass::TILE * Pass::TILE)
+    let light = if light_tiles > 0 {
+        light_tiles.max(2 * VIEW_PLANES_PER_PASS)
+    } else {
+        0
+    };
+    (view_groups + light).div_ceil(Pass::TILE * Pass::TILE)
 }
 
 /// With pass timings, a timestamp after a pass of the plane (`RenderStats::pass_ms`); the
