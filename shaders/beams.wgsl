@@ -353,6 +353,11 @@ fn list_light_tile_planes(t: u32, k: u32, last: u32, parity: u32) {
     }
 }
 
+// Beams around a light tile whose light must be unseen too before the tile ends, with the
+// soft light (`light_tile_unseen`): the side of the tiles it was measured with, whatever the
+// side the render's tiles have.
+const SOFT_UNSEEN_RING: u32 = 8u;
+
 // Planes between two tests of a light tile for `light_tile_unseen` (a tile unseen on one plane
 // stays unseen: ending it a few planes late only steps it more).
 const UNSEEN_TEST_PLANES: u32 = 4u;
@@ -373,13 +378,13 @@ fn light_tile_unseen(t: u32, k: u32) -> bool {
     let c0 = vec2<f32>(vec2<u32>(t % tx, t / tx) * TILE);
     let s = P.beam_origin.z;
     // With the soft light a beam also reads its neighbours' light: the tile ends only where
-    // the tiles around it are unseen too, so that what an ended tile's frozen light passes
-    // on reaches seen light only by diffusing across a whole tile of beams stepped on. That
-    // is small rather than nothing: measured, the images keep their bits (tests/reference.rs,
-    // the CT head's soft light in 8 bits).
+    // the SOFT_UNSEEN_RING beams around it are unseen too, so that what an ended tile's
+    // frozen light passes on reaches seen light only by diffusing across that many beams
+    // stepped on. That is small rather than nothing: measured, the images keep their bits
+    // (tests/reference.rs, the CT head's soft light in 8 bits).
     var around = 1.0;
     if (LIGHT_FILTER) {
-        around += f32(TILE);
+        around += f32(SOFT_UNSEEN_RING);
     }
     // Plane-0 pixel coordinates (as `grid_point`) of the centres of cells c0 − around and
     // c0 + TILE − 1 + around.

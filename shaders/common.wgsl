@@ -39,8 +39,9 @@ const SG_DIRECTION_LENGTH: u32 = 2048u;  // MIN_DIRECTION_LENGTH
 const SG_SATURATION: u32 = 4096u;        // beams: accumulated light stops at ACC_SATURATED
 
 // Invocations per side of the square tiles of pixels and light-grid cells that workgroups
-// work on (render::shaders::Pass::TILE mirrors it).
-const TILE: u32 = 8u;
+// work on, and that are listed, skipped and ended as one (`Pass::TILE` and `Pass::CPU_TILE`
+// in render/shaders.rs: the render picks one).
+override TILE: u32 = 8u;
 
 fn guarded(bit: u32) -> bool {
     return (SAFEGUARDS_OFF & bit) == 0u;

@@ -281,7 +281,7 @@ fn tiny_speed_bench_counts_the_memory_it_reports() {
         csv.lines()
             .next()
             .unwrap()
-            .ends_with(",light_ms,view_ms,listing_ms,finish_ms,pass_frames_gpu_ms_median"),
+            .ends_with(",light_ms,view_ms,listing_ms,finish_ms,pass_frames_gpu_ms_median,tile_side"),
         "{csv}"
     );
     // An edit of the opacity curve keeps the volume images: only the two pre-integrated tables

@@ -131,6 +131,8 @@ pub struct SpeedRow {
     pub light_grid: [u32; 2],
     /// Light-tile steps (`RenderStats::light_steps`), where light tiles are listed.
     pub light_steps: Option<u64>,
+    /// The side of the tiles they count (`RenderStats::tile`).
+    pub tile: u32,
     /// Pixels whose rays can meet the volume, width × height.
     pub footprint: [u32; 2],
     pub state_bytes: u64,
@@ -326,6 +328,7 @@ fn measure(
         pass_frames_ms: Spread::of(passes_total),
         light_grid: s.light_grid,
         light_steps: s.light_steps,
+        tile: s.tile,
         footprint: s.rect,
         state_bytes: s.state_bytes,
         texture_bytes: s.texture_bytes,

@@ -73,7 +73,8 @@ pub fn write_markdown(path: &Path, rows: &[SpeedRow], fits: &[SpeedFit], c: &Con
             r.pass_ms[2],
             r.light_grid[0],
             r.light_grid[1],
-            r.light_steps.map_or_else(|| "–".to_string(), |n| n.to_string()),
+            r.light_steps
+                .map_or_else(|| "–".to_string(), |n| format!("{n} of {}²", r.tile)),
             r.footprint[0],
             r.footprint[1],
             mib(r.state_bytes),
@@ -130,12 +131,12 @@ pub fn write_csv(path: &Path, rows: &[SpeedRow]) -> Result<(), String> {
         "scene,features,viewport,tiny,planes,gpu_ms_median,gpu_ms_min,gpu_ms_max,wall_ms_median,ms_per_plane,\
          light_grid_w,light_grid_h,light_tile_steps,footprint_w,footprint_h,state_bytes,texture_bytes,\
          peak_device_local_bytes,peak_host_visible_bytes,light_ms,view_ms,listing_ms,finish_ms,\
-         pass_frames_gpu_ms_median\n",
+         pass_frames_gpu_ms_median,tile_side\n",
     );
     for r in rows {
         let _ = writeln!(
             s,
-            "{},{},{},{},{},{:.3},{:.3},{:.3},{:.3},{:.5},{},{},{},{},{},{},{},{},{},{:.3},{:.3},{:.3},{:.3},{:.3}",
+            "{},{},{},{},{},{:.3},{:.3},{:.3},{:.3},{:.5},{},{},{},{},{},{},{},{},{},{:.3},{:.3},{:.3},{:.3},{:.3},{}",
             r.scene,
             r.features,
             r.size,
@@ -160,6 +161,7 @@ pub fn write_csv(path: &Path, rows: &[SpeedRow]) -> Result<(), String> {
             r.pass_ms[2],
             r.pass_ms[3],
             r.pass_frames_ms.median,
+            r.tile,
         );
     }
     std::fs::write(path, s).map_err(|e| e.to_string())

@@ -150,7 +150,8 @@ pub fn render(args: &RenderArgs) -> Result<()> {
             );
         }
         if let Some(steps) = s.light_steps {
-            println!("light tile steps: {steps} (tiles of 8×8 beams stepped, over all planes)");
+            let t = s.tile;
+            println!("light tile steps: {steps} (tiles of {t}×{t} beams stepped, over all planes)");
         }
         if let Some(l) = &s.lbm {
             println!(

@@ -166,6 +166,8 @@ impl Features {
             ("LBM", f(self.lbm)),
             ("SAMPLED_LAYERS", f(self.sampled_layers)),
             ("ACC_IMAGE", f(self.deposit_image)),
+            // The GPU's side; a render sets its own (`state::tile_side`, `Renderer`).
+            ("TILE", super::shaders::Pass::TILE as f64),
         ]
     }
 

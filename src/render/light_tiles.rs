@@ -8,7 +8,6 @@
 use rayon::prelude::*;
 
 use super::occupancy::Grown;
-use super::shaders::Pass;
 use super::state::ACC_LEVELS;
 use crate::scene::view::{BeamGrid, ViewSetup};
 
@@ -50,7 +49,7 @@ pub fn texture_scale(view: &ViewSetup) -> [f32; 3] {
     [0, 1, 2].map(|i| m.row(i).length())
 }
 
-/// Per light tile: the first plane (at least 1) on which one of its beams, carried straight
+/// Per light tile (`tile` × `tile` beams): the first plane (at least 1) on which one of its beams, carried straight
 /// along the light from plane 0, is in an occupied cell of `grown` (the cells grown by the
 /// margin; NEVER if on none); the smallest of those over the tile and its eight neighbours
 /// (the plane from which `list_light_tile` steps it); and the last plane on which one of its
@@ -59,11 +58,15 @@ pub fn texture_scale(view: &ViewSetup) -> [f32; 3] {
 /// after the last its light no longer changes. Without `last` (bent beams, whose end the
 /// device finds) the last plane is left 0 and each line is traversed only to the first
 /// occupied cell it meets.
-pub fn spans(view: &ViewSetup, grid: &BeamGrid, light: glam::Vec3, grown: &[Grown], last: bool) -> Vec<[u32; 4]> {
-    let (tx, ty) = (
-        grid.width.div_ceil(Pass::TILE) as usize,
-        grid.height.div_ceil(Pass::TILE) as usize,
-    );
+pub fn spans(
+    view: &ViewSetup,
+    grid: &BeamGrid,
+    light: glam::Vec3,
+    grown: &[Grown],
+    last: bool,
+    tile: u32,
+) -> Vec<[u32; 4]> {
+    let (tx, ty) = (grid.width.div_ceil(tile) as usize, grid.height.div_ceil(tile) as usize);
     let volume_from_view = view.volume_from_view();
     // Texture coordinates per unit of depth along the light.
     let dq = volume_from_view.transform_vector3(light / light.z);
@@ -80,7 +83,7 @@ pub fn spans(view: &ViewSetup, grid: &BeamGrid, light: glam::Vec3, grown: &[Grow
                 let ndc = glam::Vec2::new((e.x - cx) / fx, (e.y - cy) / fy);
                 let scale = if view.perspective { view.z_first } else { 1.0 };
                 let q0 = volume_from_view.transform_point3(glam::Vec3::new(ndc.x * scale, ndc.y * scale, view.z_first));
-                let t = &mut row[i as usize / Pass::TILE as usize];
+                let t = &mut row[(i / tile) as usize];
                 for g in grown {
                     // Without `last`, an end of 0 leaves the last plane at 0.
                     let hit = if last {
@@ -100,7 +103,7 @@ pub fn spans(view: &ViewSetup, grid: &BeamGrid, light: glam::Vec3, grown: &[Grow
     let mut raw = vec![(NEVER, 0u32); tx * ty];
     for (j, row) in rows.iter().enumerate() {
         for (x, &(first, last)) in row.iter().enumerate() {
-            let t = &mut raw[(j / Pass::TILE as usize) * tx + x];
+            let t = &mut raw[(j / tile as usize) * tx + x];
             *t = (t.0.min(first), t.1.max(last));
         }
     }
@@ -122,6 +125,7 @@ pub fn spans(view: &ViewSetup, grid: &BeamGrid, light: glam::Vec3, grown: &[Grow
 mod tests {
     use super::*;
     use crate::render::occupancy::{Occupancy, CELL};
+    use crate::render::shaders::Pass;
     use crate::scene::builtin;
     use crate::scene::view::light_direction;
 
@@ -161,37 +165,41 @@ mod tests {
                 })
             })
         };
-        let spans = spans(&view, &grid, light, &[occupancy.grown(margin)], true);
-        // Without the last planes (bent beams) each line stops at its first occupied cell:
-        // the first planes are the same.
-        let firsts = super::spans(&view, &grid, light, &[occupancy.grown(margin)], false);
-        for (a, b) in spans.iter().zip(&firsts) {
-            assert_eq!((a[0], a[1], 0), (b[0], b[1], b[2]), "{a:?} against {b:?}");
-        }
-        let tx = grid.width.div_ceil(Pass::TILE) as usize;
-        let volume_from_view = view.volume_from_view();
+        // Either side of tile the sweep may work in.
         let (mut later, mut earlier) = (0, 0);
-        for j in 0..grid.height {
-            for i in 0..grid.width {
-                let e = glam::Vec2::new(grid.x0, grid.y0) + (glam::Vec2::new(i as f32, j as f32) + 0.5) * grid.stride;
-                let p0 = view.point_at(e, view.z_first);
-                let t = (j / Pass::TILE) as usize * tx + (i / Pass::TILE) as usize;
-                for k in 0..view.planes {
-                    let p = p0 + light * ((view.plane_z(k) - view.z_first) / light.z);
-                    if near(volume_from_view.transform_point3(p)) {
-                        assert!(
-                            spans[t][0] <= k.max(1) && spans[t][2] >= k,
-                            "beam ({i}, {j}) is near a cell on plane {k}, its tile spans {:?}",
-                            spans[t]
-                        );
+        for tile in [Pass::TILE, Pass::CPU_TILE] {
+            let spans = spans(&view, &grid, light, &[occupancy.grown(margin)], true, tile);
+            // Without the last planes (bent beams) each line stops at its first occupied cell:
+            // the first planes are the same.
+            let firsts = super::spans(&view, &grid, light, &[occupancy.grown(margin)], false, tile);
+            for (a, b) in spans.iter().zip(&firsts) {
+                assert_eq!((a[0], a[1], 0), (b[0], b[1], b[2]), "{a:?} against {b:?}");
+            }
+            let tx = grid.width.div_ceil(tile) as usize;
+            let volume_from_view = view.volume_from_view();
+            for j in 0..grid.height {
+                for i in 0..grid.width {
+                    let e =
+                        glam::Vec2::new(grid.x0, grid.y0) + (glam::Vec2::new(i as f32, j as f32) + 0.5) * grid.stride;
+                    let p0 = view.point_at(e, view.z_first);
+                    let t = (j / tile) as usize * tx + (i / tile) as usize;
+                    for k in 0..view.planes {
+                        let p = p0 + light * ((view.plane_z(k) - view.z_first) / light.z);
+                        if near(volume_from_view.transform_point3(p)) {
+                            assert!(
+                                spans[t][0] <= k.max(1) && spans[t][2] >= k,
+                                "beam ({i}, {j}) is near a cell on plane {k}, its tile spans {:?}",
+                                spans[t]
+                            );
+                        }
                     }
-                }
-                assert!(spans[t][1] <= spans[t][0]);
-                if spans[t][1] > 1 && spans[t][1] != NEVER {
-                    later += 1;
-                }
-                if spans[t][0] != NEVER && spans[t][2] + 1 < view.planes {
-                    earlier += 1;
+                    assert!(spans[t][1] <= spans[t][0]);
+                    if spans[t][1] > 1 && spans[t][1] != NEVER {
+                        later += 1;
+                    }
+                    if spans[t][0] != NEVER && spans[t][2] + 1 < view.planes {
+                        earlier += 1;
+                    }
                 }
             }
         }

@@ -116,6 +116,11 @@ pub struct RenderRequest {
     /// false in every real render.
     #[doc(hidden)]
     pub per_plane_light: bool,
+    /// Work in the tiles a GPU works in (`Pass::TILE`) where a CPU driver's render would take
+    /// smaller ones (`Pass::CPU_TILE`: the same image to the bit). Tests only: false in every
+    /// real render.
+    #[doc(hidden)]
+    pub gpu_tiles: bool,
     /// Read the deposited light as a storage buffer where a render would read it through an
     /// image over the same memory (a CPU driver, `Features::deposit_image`: the same image
     /// to the bit). Tests only: false in every real render.
@@ -148,6 +153,7 @@ impl RenderRequest {
             keep_unseen_light: false,
             step_empty_view_tiles: false,
             per_plane_light: false,
+            gpu_tiles: false,
             buffer_deposit_reads: false,
             pass_timings: false,
             keep_coarse_volume: false,
@@ -196,9 +202,12 @@ pub struct RenderStats {
     /// Light passes of the sweep: one per plane, or one per view pass where the light is
     /// stepped over a view pass's planes in one dispatch ([`RenderRequest::per_plane_light`]).
     pub light_passes: u32,
-    /// Light-tile steps (tiles of 8 × 8 beams, over all planes) where light tiles are listed
-    /// per plane: the light's work.
+    /// Light-tile steps (tiles of `tile` × `tile` beams, over all planes) where light tiles
+    /// are listed per plane: the light's work.
     pub light_steps: Option<u64>,
+    /// The side of the sweep's tiles of pixels and beams (`Pass::TILE`, or `Pass::CPU_TILE` on
+    /// a CPU driver).
+    pub tile: u32,
     /// Pixels whose rays can meet the volume, width × height.
     pub rect: [u32; 2],
     /// Precision the render actually used (lower than the scene's after an out-of-memory retry).
@@ -305,6 +314,7 @@ impl Renderer {
             features,
             debug: req.debug_view,
             safeguards_off: req.safeguards_off,
+            tile: state::tile_side(&self.ctx, prepared, req, &features),
         };
         let Renderer {
             ctx,
@@ -343,6 +353,7 @@ impl Renderer {
                 precision,
                 state::Passes {
                     sweep: Box::new(sweep),
+                    tile: key.tile,
                     lbm: lbm.as_ref().filter(|_| features.lbm),
                 },
                 textures,
@@ -358,6 +369,8 @@ struct PipelineKey {
     features: Features,
     debug: DebugView,
     safeguards_off: u32,
+    /// The side of the sweep's tiles (the `TILE` override; `state::tile_side`).
+    tile: u32,
 }
 
 /// The sweep's pipelines for `passes`: each specialised, then compiled side by side. Compiling
@@ -377,8 +390,12 @@ fn compile(
             std::collections::hash_map::Entry::Vacant(e) => e.insert(pass.parse()?),
         };
         let mut constants = key.features.constants(key.debug, key.precision);
-        for c in constants.iter_mut().filter(|c| c.0 == "SAFEGUARDS_OFF") {
-            c.1 = key.safeguards_off as f64;
+        for c in constants.iter_mut() {
+            match c.0 {
+                "SAFEGUARDS_OFF" => c.1 = key.safeguards_off as f64,
+                "TILE" => c.1 = key.tile as f64,
+                _ => {}
+            }
         }
         let compiled = source.specialise(pass.entry(), &constants)?;
         let label = format!(

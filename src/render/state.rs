@@ -85,8 +85,9 @@ fn cols(m: Mat4) -> [[f32; 4]; 4] {
     m.to_cols_array_2d()
 }
 
-fn tiles(n: u32) -> u32 {
-    n.div_ceil(Pass::TILE)
+/// Tiles of side `tile` along `n` pixels or light-grid cells.
+fn tiles(n: u32, tile: u32) -> u32 {
+    n.div_ceil(tile)
 }
 
 /// Light channels per deposited pixel: rgb when the medium colours the light (else one grey
@@ -99,6 +100,8 @@ fn light_channels(features: &Features, debug: DebugView) -> u32 {
 
 struct Layout {
     grid: BeamGrid,
+    /// The side of the tiles of pixels and beams (`tile_side`).
+    tile: u32,
     beam_groups: u32,
     view_tiles_x: u32,
     view_groups: u32,
@@ -141,12 +144,13 @@ struct Layout {
 }
 
 impl Layout {
-    fn new(view: &ViewSetup, grid: BeamGrid, channels: u32) -> Layout {
-        let view_tiles_x = tiles(view.rect.width());
-        let view_groups = view_tiles_x * tiles(view.rect.height());
+    fn new(view: &ViewSetup, grid: BeamGrid, channels: u32, tile: u32) -> Layout {
+        let view_tiles_x = tiles(view.rect.width(), tile);
+        let view_groups = view_tiles_x * tiles(view.rect.height(), tile);
         Layout {
             grid,
-            beam_groups: tiles(grid.width) * tiles(grid.height),
+            tile,
+            beam_groups: tiles(grid.width, tile) * tiles(grid.height, tile),
             view_tiles_x,
             view_groups,
             channels,
@@ -302,13 +306,13 @@ fn tile_steps(spans: &[[u32; 4]], ends: &[u32], planes: u32) -> u64 {
 /// lists of the pass just done (`tiles_main`), so there are at least that many, however few
 /// light tiles there are: a list left as it was kept the tiles of two passes before, and
 /// stepped them again.
-fn tile_groups(view_groups: u32, light_tiles: u32) -> u32 {
+fn tile_groups(view_groups: u32, light_tiles: u32, tile: u32) -> u32 {
     let light = if light_tiles > 0 {
         light_tiles.max(2 * VIEW_PLANES_PER_PASS)
     } else {
         0
     };
-    (view_groups + light).div_ceil(Pass::TILE * Pass::TILE)
+    (view_groups + light).div_ceil(tile * tile)
 }
 
 /// With pass timings, a timestamp after a pass of the plane (`RenderStats::pass_ms`); the
@@ -330,10 +334,11 @@ fn groups(n: u32) -> [u32; 3] {
 /// the cells whose light can still reach the image's rect on this plane or a later one. Light
 /// that is not refracted travels along the light direction, so that is the rect carried
 /// back along it to plane 0, from this plane and from the last one (in between it sweeps
-/// linearly), two tiles wider for the neighbours a cell reads. Refracted light can turn back
-/// toward the rect from anywhere: then every plane needs the whole grid.
-fn light_windows(view: &ViewSetup, grid: &BeamGrid, light: glam::Vec3, refraction: bool) -> Vec<[u32; 4]> {
-    let (tx, ty) = (tiles(grid.width), tiles(grid.height));
+/// linearly), 16 cells wider for the neighbours a cell reads (two tiles of `Pass::TILE`,
+/// whatever the side of the render's tiles). Refracted light can turn back toward the rect
+/// from anywhere: then every plane needs the whole grid.
+fn light_windows(view: &ViewSetup, grid: &BeamGrid, light: glam::Vec3, refraction: bool, tile: u32) -> Vec<[u32; 4]> {
+    let (tx, ty) = (tiles(grid.width, tile), tiles(grid.height, tile));
     let full = [0, 0, tx, tx * ty];
     if refraction {
         return vec![full; view.planes as usize + 1];
@@ -358,12 +363,12 @@ fn light_windows(view: &ViewSetup, grid: &BeamGrid, light: glam::Vec3, refractio
             let margin = 2 * Pass::TILE as i64;
             let clamp = |v: f32, n: u32| (v as i64).clamp(0, n as i64) as u32;
             let (x0, y0) = (
-                clamp(lo.x.floor() - margin as f32, grid.width) / Pass::TILE,
-                clamp(lo.y.floor() - margin as f32, grid.height) / Pass::TILE,
+                clamp(lo.x.floor() - margin as f32, grid.width) / tile,
+                clamp(lo.y.floor() - margin as f32, grid.height) / tile,
             );
             let (x1, y1) = (
-                tiles(clamp(hi.x.ceil() + margin as f32, grid.width)),
-                tiles(clamp(hi.y.ceil() + margin as f32, grid.height)),
+                tiles(clamp(hi.x.ceil() + margin as f32, grid.width), tile),
+                tiles(clamp(hi.y.ceil() + margin as f32, grid.height), tile),
             );
             let (w, h) = (x1.saturating_sub(x0), y1.saturating_sub(y0));
             [x0, y0, w.max(1), w * h]
@@ -444,7 +449,7 @@ fn make_params(
             f32::from(u8::from(super::bricks::clear_outside(&prepared.tf))),
         ],
         beam_origin: [g.x0, g.y0, g.stride, g.stride * g.stride],
-        beam_grid: [g.width, g.height, tiles(g.width), layout.beam_groups],
+        beam_grid: [g.width, g.height, tiles(g.width, layout.tile), layout.beam_groups],
         rect: [r.x0, r.y0, r.x1, r.y1],
         tiles: [
             layout.view_tiles_x,
@@ -629,7 +634,65 @@ pub(super) struct Passes<'a> {
     /// Gives the sweep's pipelines; asked once everything else of the render is set up, so
     /// that they can be compiled meanwhile.
     pub sweep: Box<dyn FnOnce() -> Result<[Arc<ComputePipeline>; 7], RenderError> + 'a>,
+    /// The side of the tiles the sweep's pipelines were specialised for (`tile_side`).
+    pub tile: u32,
     pub lbm: Option<&'a super::lbm::Pipelines>,
+}
+
+/// The view a render sweeps and its light grid, and the light's direction (view space), from
+/// the scene and the request.
+fn view_and_grid(
+    prepared: &PreparedScene,
+    req: &RenderRequest,
+    features: &Features,
+) -> Result<(ViewSetup, BeamGrid, glam::Vec3), RenderError> {
+    let scene = &prepared.scene;
+    let vol = &prepared.volume;
+    let mut view = ViewSetup::new(scene, vol.dims, vol.spacing, req.width, req.height).map_err(RenderError::Setup)?;
+    view.shift_planes(req.jitter[0]).map_err(RenderError::Setup)?;
+    if matches!(
+        req.debug_view,
+        DebugView::Light | DebugView::LightDirection | DebugView::Intensity
+    ) {
+        // The light views show the plane across the whole frame, not only where view rays can
+        // meet the volume (refracted beams deposit only within the rect).
+        view.rect = crate::scene::view::PixelRect::frame(req.width, req.height);
+    }
+    let light = light_direction(&scene.light);
+    let deposits = features.transport == LightTransport::Beams && features.refraction;
+    // Beams that carry only the unscattered light: at most one per voxel where they keep
+    // their cells (no refraction), a few where they are bent.
+    let voxel_cap = if features.transport != LightTransport::Beams || features.scatter || features.lbm {
+        None
+    } else if features.refraction {
+        Some(VoxelCap::REFRACTED)
+    } else {
+        Some(VoxelCap::UNREFRACTED)
+    };
+    let grid = view
+        .beam_grid(light, scene.quality.beams_per_texel, !deposits, voxel_cap)
+        .shifted(req.jitter[1], req.jitter[2]);
+    Ok((view, grid, light))
+}
+
+/// The side of the tiles a render's sweep works in (the `TILE` override): `Pass::CPU_TILE` on a
+/// CPU driver where the rect's tiles and the light grid's of that side each fit one row of
+/// workgroups (the lists are dispatched as one), else `Pass::TILE`.
+/// A request `run` refuses gets `Pass::TILE`, and `run` says why.
+pub(super) fn tile_side(ctx: &Context, prepared: &PreparedScene, req: &RenderRequest, features: &Features) -> u32 {
+    if !ctx.is_cpu() || req.gpu_tiles || req.width == 0 || req.height == 0 {
+        return Pass::TILE;
+    }
+    let Ok((view, grid, _)) = view_and_grid(prepared, req, features) else {
+        return Pass::TILE;
+    };
+    let t = Pass::CPU_TILE;
+    let fits = |w: u32, h: u32| tiles(w, t) as u64 * tiles(h, t) as u64 <= MAX_GROUPS_PER_ROW as u64;
+    if fits(view.rect.width(), view.rect.height()) && fits(grid.width, grid.height) {
+        t
+    } else {
+        Pass::TILE
+    }
 }
 
 pub(super) fn run(
@@ -641,7 +704,7 @@ pub(super) fn run(
     passes: Passes,
     cache: &mut Option<CachedTextures>,
 ) -> Result<RenderOutput, RenderError> {
-    let Passes { sweep, lbm } = passes;
+    let Passes { sweep, tile, lbm } = passes;
     let (w, h) = (req.width, req.height);
     let max_2d = ctx.limits().max_image_dimension2_d;
     if w == 0 || h == 0 || w > max_2d || h > max_2d {
@@ -658,44 +721,24 @@ pub(super) fn run(
                 .into(),
         ));
     }
-    let mut view = ViewSetup::new(scene, vol.dims, vol.spacing, w, h).map_err(RenderError::Setup)?;
-    view.shift_planes(req.jitter[0]).map_err(RenderError::Setup)?;
+    let (view, grid, light) = view_and_grid(prepared, req, &features)?;
     // The light views: no view rays, the light on one plane.
     let diagnoses_light = matches!(
         req.debug_view,
         DebugView::Light | DebugView::LightDirection | DebugView::Intensity
     );
-    if diagnoses_light {
-        // The light views show the plane across the whole frame, not only where view rays can
-        // meet the volume (refracted beams deposit only within the rect).
-        view.rect = crate::scene::view::PixelRect::frame(w, h);
-    }
     let planes_run = if req.debug_view == DebugView::Image || req.debug_view == DebugView::Medium {
         view.planes
     } else {
         1 + (req.debug_depth.clamp(0.0, 1.0) * (view.planes - 1) as f32).round() as u32
     };
-    let light = light_direction(&scene.light);
-    let deposits = features.transport == LightTransport::Beams && features.refraction;
-    // Beams that carry only the unscattered light: at most one per voxel where they keep
-    // their cells (no refraction), a few where they are bent.
-    let voxel_cap = if features.transport != LightTransport::Beams || features.scatter || features.lbm {
-        None
-    } else if features.refraction {
-        Some(VoxelCap::REFRACTED)
-    } else {
-        Some(VoxelCap::UNREFRACTED)
-    };
-    let grid = view
-        .beam_grid(light, scene.quality.beams_per_texel, !deposits, voxel_cap)
-        .shifted(req.jitter[1], req.jitter[2]);
-    let mut layout = Layout::new(&view, grid, light_channels(&features, req.debug_view));
+    let mut layout = Layout::new(&view, grid, light_channels(&features, req.debug_view), tile);
     if features.transport == LightTransport::Beams && !diagnoses_light {
         // Only view samples read the beams' power back along their light line (the light
         // views show the power on the plane): no ring of refracted beams' power for them.
         layout.back_planes = back_planes(scene.quality.sample_distance);
     }
-    let windows = light_windows(&view, &grid, light, features.refraction);
+    let windows = light_windows(&view, &grid, light, features.refraction, tile);
     // Beams are stepped only near the volume's box where nothing outside it absorbs and the
     // image is all that is shown (the light diagnostics show the light outside the box too);
     // the spread mode's clouds reach further than the margin.
@@ -802,7 +845,7 @@ pub(super) fn run(
         let grown = cached.grown(scale.map(|s| s * straight), coarse);
         // Bent beams end where the device finds they can no longer reach the box
         // (`light_alive`); the straight lines' last planes do not bound them.
-        let spans = light_tiles::spans(&view, &grid, light, &grown, !features.refraction);
+        let spans = light_tiles::spans(&view, &grid, light, &grown, !features.refraction, tile);
         if features.refraction {
             // A beam deposits only where a view sample can read it: in those cells; a beam
             // whose deposit reaches further (spread by refraction) always deposits.
@@ -928,8 +971,9 @@ pub(super) fn run(
     let tile_groups = tile_groups(
         layout.view_groups,
         if layout.light_lists { layout.beam_groups } else { 0 },
+        tile,
     );
-    let finish_groups = [tiles(w), tiles(h), 1];
+    let finish_groups = [w.div_ceil(Pass::FINISH_TILE), h.div_ceil(Pass::FINISH_TILE), 1];
     // Beams that deposit their light (refraction, the spread mode) fill a ring of slots, one
     // per plane: each is cleared before the plane that deposits into it.
     let light_acc = state.get("light_acc")?;
@@ -1059,7 +1103,7 @@ pub(super) fn run(
             if lists_light && !layout.light_groups && next_steps > 1 {
                 r.compute_to_compute();
                 let t = push(plane, next_steps, view_passes);
-                let light_tile_groups = layout.beam_groups.div_ceil(Pass::TILE * Pass::TILE);
+                let light_tile_groups = layout.beam_groups.div_ceil(tile * tile);
                 r.dispatch(
                     &pipelines[1],
                     &sets[1],
@@ -1158,6 +1202,7 @@ pub(super) fn run(
                     view_passes,
                     light_passes,
                     light_steps,
+                    tile: layout.tile,
                     rect: [view.rect.width(), view.rect.height()],
                     precision,
                     reductions: Vec::new(),
