@@ -422,7 +422,7 @@ fn write_markdown(
          times the beams per texel asked for, but no coarser than half of it, so a row may trace fewer than its \
          label asks). GPU ms per plane: median \
          of {} renders.\n",
-        renderer.context().info.name,
+        super::device_label(renderer.context()),
         plan.radius,
         plan.size,
         plan.reference.rays_per_texel,

@@ -60,7 +60,7 @@ pub struct ScatterReport {
 /// (their error against GPU time) into `out`.
 pub fn run(ctx: Arc<Context>, plan: &ScatterPlan, out: &Path, progress: bool) -> Result<ScatterReport, BenchError> {
     std::fs::create_dir_all(out).map_err(|e| write_err(out)(e.to_string()))?;
-    let device = ctx.info.name.clone();
+    let device = super::device_label(&ctx);
     let rows = scatter_modes::run(ctx, &plan.modes, progress)?;
     let mut md = premoze_tables(plan.premoze_photons);
     md.push_str(&scatter_modes::markdown(&rows, &plan.modes, &device));

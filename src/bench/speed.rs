@@ -425,7 +425,7 @@ pub fn run(ctx: Arc<Context>, plan: &SpeedPlan, out: &Path, progress: bool) -> R
             ..SpeedFit::of(&s.name, &rows)
         })
         .collect();
-    let device = ctx.info.name.clone();
+    let device = super::device_label(&ctx);
     let markdown = out.join("speed.md");
     let csv = out.join("speed.csv");
     let fit_csv = out.join("speed-fit.csv");
