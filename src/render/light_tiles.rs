@@ -49,15 +49,15 @@ pub fn texture_scale(view: &ViewSetup) -> [f32; 3] {
     [0, 1, 2].map(|i| m.row(i).length())
 }
 
-/// Per light tile (`tile` × `tile` beams): the first plane (at least 1) on which one of its beams, carried straight
-/// along the light from plane 0, is in an occupied cell of `grown` (the cells grown by the
-/// margin; NEVER if on none); the smallest of those over the tile and its eight neighbours
-/// (the plane from which `list_light_tile` steps it); and the last plane on which one of its
-/// beams is in one (0 if none). Beams bend only in occupied cells, so before the first of
-/// those planes every beam of the tile is still on its straight line, and without refraction
-/// after the last its light no longer changes. Without `last` (bent beams, whose end the
-/// device finds) the last plane is left 0 and each line is traversed only to the first
-/// occupied cell it meets.
+/// Per light tile (`tile` × `tile` beams): the first plane (at least 1) on which one of its
+/// beams, carried straight along the light from plane 0, is in an occupied cell of `grown`
+/// (the cells grown by the margin; NEVER if on none); the smallest of those over the tile and
+/// its eight neighbours (the plane from which `list_light_tile` steps it); and the last plane
+/// on which one of its beams is in one (0 if none). Beams bend only in occupied cells, so
+/// before the first of those planes every beam of the tile is still on its straight line, and
+/// without refraction after the last its light no longer changes. Without `last` (bent beams,
+/// whose end the device finds) the last plane is left 0 and each line is traversed only to the
+/// first occupied cell it meets.
 pub fn spans(
     view: &ViewSetup,
     grid: &BeamGrid,
