@@ -222,7 +222,7 @@ fn unseen_tiles_end() -> bool {
 // that has work wakes a CPU driver's threads: this is one dispatch of the light and one
 // listing per view pass instead of one of each per plane.
 fn light_groups() -> bool {
-    return dark_tiles_end() && (DEBUG_VIEW == 0u || DEBUG_VIEW == 4u) && (P.culling.w & 8u) != 0u;
+    return LIGHT_GROUPS && dark_tiles_end() && (DEBUG_VIEW == 0u || DEBUG_VIEW == 4u);
 }
 
 // The lists of light tiles a plane steps (`light_lists`, their indirect arguments
@@ -513,12 +513,16 @@ fn level_size(m: u32) -> vec2<u32> {
     return s;
 }
 
-// Offset of level m within a plane of the pyramid packed level after level, in texels.
+// Offset of level m within a plane of the pyramid packed level after level, in texels. The
+// loops here run over every level but the last, those beyond m left out: a fixed count,
+// which a CPU driver unrolls (see BACK_PLANES).
 fn level_offset(m: u32) -> u32 {
     var o = 0u;
-    for (var j = 0u; j < m; j++) {
-        let s = level_size(j);
-        o += s.x * s.y;
+    for (var j = 0u; j + 1u < acc_levels(); j++) {
+        if (j < m) {
+            let s = level_size(j);
+            o += s.x * s.y;
+        }
     }
     return o;
 }
@@ -530,8 +534,10 @@ fn level_origin(m: u32) -> vec2<u32> {
         return vec2<u32>(0u);
     }
     var y = 0u;
-    for (var j = 1u; j < m; j++) {
-        y += level_size(j).y;
+    for (var j = 1u; j + 1u < acc_levels(); j++) {
+        if (j < m) {
+            y += level_size(j).y;
+        }
     }
     return vec2<u32>(level_size(0u).x, y);
 }
@@ -1048,8 +1054,10 @@ fn beams_step(ij: vec2<u32>, k: u32, tile: u32, mode: u32) {
             // stepped from where its light can change), so it had this on the planes its
             // deposits reach back to. (A tile stays `LIGHT_EDGE` while a neighbour is not
             // stepped; its beams keep their history then.)
-            for (var j = 1u; j < min(P.sweep.y, k); j++) {
-                store_beam_power(front_power_region(k - j), ij, front);
+            for (var j = 1u; j < BACK_PLANES; j++) {
+                if (j < k) {
+                    store_beam_power(front_power_region(k - j), ij, front);
+                }
             }
         }
     }
@@ -1069,7 +1077,7 @@ fn beams_step(ij: vec2<u32>, k: u32, tile: u32, mode: u32) {
                 // The power it had a voxel back, before its last m segments
                 // (`beams_light_through`); none once it has left the sweep (turned back by
                 // total internal reflection: its light is not carried on).
-                let m = min(P.sweep.y, k);
+                let m = min(BACK_PLANES, k);
                 deposited.power = load_beam_power(front_power_region(k + 1u - m), ij);
             }
         }
@@ -1178,7 +1186,7 @@ fn beams_unscattered_at(k: u32, p: vec3<f32>) -> vec3<f32> {
 
 // Without refraction, the power each beam had on plane k-1 (before its segment to plane k) is
 // kept beside its power on plane k, for `beams_unscattered_through`: for the last P.sweep.x
-// planes, as many as a view pass advances its rays over and reads back (P.sweep.y), plus the
+// planes, as many as a view pass advances its rays over and reads back (BACK_PLANES), plus the
 // one being written. With refraction, where a voxel spans several planes
 // (`refracted_power_ring`), each beam keeps its own for the planes of a voxel, and deposits
 // the power it had that far back.
@@ -1189,12 +1197,13 @@ fn front_power_region(k: u32) -> u32 {
 // Whether refracted beams keep their power of the planes before (the image and the medium
 // view, where a voxel spans several planes).
 fn refracted_power_ring() -> bool {
-    return REFRACTION && deposits_front_power() && P.sweep.y > 1u;
+    return REFRACTION && deposits_front_power() && BACK_PLANES > 1u;
 }
 
-// The light's last m segments to p (value: the data value there), along the source's
-// direction back to the plane m planes before: their transmittance, with the segment
-// function the beams use, and where the line crosses that plane.
+// The light's last m segments to p (value: the data value there; m at most BACK_PLANES),
+// along the source's direction back to the plane m planes before: their transmittance, with
+// the segment function the beams use, and where the line crosses that plane. The loop runs
+// BACK_PLANES times, the segments beyond m left out: a fixed count (see BACK_PLANES).
 struct LightLine {
     transmittance: vec3<f32>,
     start: vec3<f32>,
@@ -1205,20 +1214,22 @@ fn light_line(p: vec3<f32>, value: f32, m: u32) -> LightLine {
     var t = vec3<f32>(1.0);
     var q = p;
     var vq = value;
-    for (var j = 0u; j < m; j++) {
-        let b = q - back;
-        let vb = sample_value(b);
-        let mid = 0.5 * (b + q);
-        t *= segment_transmittance(vb, sample_value(mid), vq, 1.0 / P.light_dir.z, is_clipped(mid));
-        q = b;
-        vq = vb;
+    for (var j = 0u; j < BACK_PLANES; j++) {
+        if (j < m) {
+            let b = q - back;
+            let vb = sample_value(b);
+            let mid = 0.5 * (b + q);
+            t *= segment_transmittance(vb, sample_value(mid), vq, 1.0 / P.light_dir.z, is_clipped(mid));
+            q = b;
+            vq = vb;
+        }
     }
     return LightLine(t, q);
 }
 
 // Without refraction: the light arriving at p on plane k (value: the data value there), with
 // the attenuation of the last voxel of its way taken along p's own light line: the beams'
-// power on plane k-m (m = P.sweep.y, the planes in a voxel) where that line crosses it
+// power on plane k-m (m = BACK_PLANES, the planes in a voxel) where that line crosses it
 // (bilinear over the same cells), times the transmittance from there to p, segment by
 // segment. The beams' power on plane k is the same product at their cell centres, and
 // bilinear between them it is wrong next to a surface that passes between two beams: a point
@@ -1228,7 +1239,7 @@ fn light_line(p: vec3<f32>, value: f32, m: u32) -> LightLine {
 // surface whatever the plane distance: a side-lit opaque slab is as bright as the
 // Lommel–Seeliger law says within 14% at Δs = ¼ (20% one plane back; tests/steps.rs).
 fn beams_unscattered_through(k: u32, p: vec3<f32>, value: f32) -> vec3<f32> {
-    let m = min(P.sweep.y, k);
+    let m = min(BACK_PLANES, k);
     let line = light_line(p, value, m);
     return beam_cells_at(front_power_region(k + 1u - m), line.start) * line.transmittance;
 }
@@ -1241,7 +1252,7 @@ fn deposits_front_power() -> bool {
 }
 
 // With refraction: the light arriving at p on plane k (value: the data value there). The beams
-// deposited the power they had before their last m segments, m = P.sweep.y (the planes in a
+// deposited the power they had before their last m segments, m = BACK_PLANES (the planes in a
 // voxel; `deposits_front_power`, `refracted_power_ring`), and those segments' attenuation is
 // taken here along p's own light line, as `beams_unscattered_through` does without
 // refraction: one plane back, at Δs = ¼, the beams next to a surface lit from the side still
@@ -1249,7 +1260,7 @@ fn deposits_front_power() -> bool {
 // direction, which is the light's outside refracting media (inside them, where it is not,
 // the transmittance is near 1 unless the medium is also opaque).
 fn beams_light_through(k: u32, p: vec3<f32>, value: f32) -> vec3<f32> {
-    return beams_light_at(k, p).color * light_line(p, value, min(P.sweep.y, k)).transmittance;
+    return beams_light_at(k, p).color * light_line(p, value, min(BACK_PLANES, k)).transmittance;
 }
 
 // Light arriving at the view-space point p on plane k (fluence relative to the source, and

@@ -43,6 +43,19 @@ const SG_SATURATION: u32 = 4096u;        // beams: accumulated light stops at AC
 // in render/shaders.rs: the render picks one).
 override TILE: u32 = 8u;
 
+// Planes back along its light line from which a view sample reads the beams' power: those in
+// a voxel at the render's sample distance, 1 to 8 (`Specialisation` in state.rs). A constant, so
+// that the loops over them have a fixed count: a CPU driver runs a loop whose count is only
+// known when the shader runs as a loop (the plain view pass was a sixth slower with one
+// segment counted that way), and one it can unroll as straight code.
+override BACK_PLANES: u32 = 1u;
+
+// The listed light tiles are stepped over a view pass's planes in one dispatch (`light_groups`
+// in beams.wgsl; `Specialisation` in state.rs). A constant rather than a flag of the
+// parameters: a CPU driver runs both sides of a branch a workgroup takes, and the edge light
+// pass's one-plane step beside the groups' took a ninth of a plain frame's light.
+override LIGHT_GROUPS: bool = false;
+
 fn guarded(bit: u32) -> bool {
     return (SAFEGUARDS_OFF & bit) == 0u;
 }
@@ -97,9 +110,9 @@ struct Params {
     beam_grid: vec4<u32>,            // light grid: width, height, tiles in x, workgroups
     rect: vec4<u32>,                 // pixels whose rays can meet the volume: x0, y0, x1, y1 (half-open)
     tiles: vec4<u32>,                // view tiles in x, view workgroups, workgroups per dispatch row (all passes), light channels
-    culling: vec4<u32>,              // bricks along x, y, z; bits: view tiles listed per plane (1), light tiles unseen end (2), empty view tiles skipped (4), light tiles stepped per view pass (8)
+    culling: vec4<u32>,              // bricks along x, y, z; bits: view tiles listed per plane (1), light tiles unseen end (2), empty view tiles skipped (4)
     light_box: vec4<f32>,            // beams: texture units per view unit along each axis at most (xyz); w: 1 when light tiles are listed per plane
-    sweep: vec4<u32>,                // planes of the beams' front power kept (x), planes a view sample reads back (y), slots of deposited light (z); w unused
+    sweep: vec4<u32>,                // planes of the beams' front power kept (x), slots of deposited light (z); y, w unused (BACK_PLANES)
     deposits: vec4<u32>,             // atlas of deposited light: words per row (x), per layer (y: a channel of a slot); zw unused
 }
 

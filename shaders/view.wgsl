@@ -298,7 +298,7 @@ fn view_step(px: vec2<u32>, k: u32, tile: u32) {
         return;
     }
     var r = before;
-    _ = view_segment(px, k, tile, &r);
+    _ = view_segment(px, k, tile, &r, ray_start(before, k));
     store_view(px, r, before);
 }
 
@@ -319,12 +319,33 @@ fn view_steps(px: vec2<u32>, k0: u32, k1: u32, tile: u32) {
         return;
     }
     var r = before;
+    var start = ray_start(before, k0);
     for (var k = k0; k <= k1; k++) {
-        if (!view_segment(px, k, tile, &r)) {
+        if (!view_segment(px, k, tile, &r, start)) {
             break;
         }
+        start = r.ray.xy;
     }
     store_view(px, r, before);
+}
+
+// With refraction, where ray r stands on plane k-1, the start of its segment to plane k (the
+// plane it was stored on, or later): a ray skipped on the planes before (its tile was in
+// empty space, unbent) is carried straight on from where it was stored, plane by plane with
+// the arithmetic of the segments it skipped, so that it lands where stepping would have put
+// it, to the bit, whichever planes were skipped (one jump rounds differently, and refraction
+// at a grazing rim amplifies that). Once per view pass, before its segments: a loop whose
+// count is only known when the shader runs costs a CPU driver every time it is met, even
+// when it runs no step (see BACK_PLANES).
+fn ray_start(r: ViewRay, k: u32) -> vec2<f32> {
+    var x = r.ray.xy;
+    if (REFRACTION) {
+        let dir = safe_normalize(vec3<f32>(r.ray.zw, r.aux.x));
+        for (var j = u32(r.aux.z) - 1u; j + 1u < k; j++) {
+            x = straight_to(vec3<f32>(x, plane_z(j)), dir, plane_z(j + 1u)).xy;
+        }
+    }
+    return x;
 }
 
 // The ray ends (it is counted out of its tile).
@@ -333,8 +354,9 @@ fn end_ray(r: ptr<function, ViewRay>, tile: u32) {
     atomicSub(&view_tiles[tile], 1u);
 }
 
-// One segment from plane k-1 to plane k of the ray r of pixel px; false once it has ended.
-fn view_segment(px: vec2<u32>, k: u32, tile: u32, r: ptr<function, ViewRay>) -> bool {
+// One segment from plane k-1 to plane k of the ray r of pixel px, which with refraction starts
+// at `start` on plane k-1 (`ray_start`); false once it has ended.
+fn view_segment(px: vec2<u32>, k: u32, tile: u32, r: ptr<function, ViewRay>, start: vec2<f32>) -> bool {
     var aux = (*r).aux;
     // A ray skipped on the planes before (its tile was in empty space) has no fresh front
     // value or light: its last segment was empty, so the end's value and light stand in for
@@ -345,20 +367,10 @@ fn view_segment(px: vec2<u32>, k: u32, tile: u32, r: ptr<function, ViewRay>) -> 
     var x0 = unproject(vec2<f32>(px), plane_z(k - 1u));
     var v = primary_dir(vec2<f32>(px));
     if (REFRACTION) {
-        x0 = vec3<f32>((*r).ray.xy, plane_z(k - 1u));
+        x0 = vec3<f32>(start, plane_z(k - 1u));
         v = vec3<f32>((*r).ray.zw, aux.x);
     }
     let dir = safe_normalize(v);
-    if (REFRACTION && skipped) {
-        // Skipped through empty bricks (its tile unbent): straight on from where it was
-        // stored, plane by plane with the arithmetic of the segments it skipped, so that it
-        // lands where stepping would have put it, to the bit, whichever planes were skipped
-        // (one jump rounds differently, and refraction at a grazing rim amplifies that).
-        for (var j = u32(aux.z) - 1u; j + 1u < k; j++) {
-            x0 = straight_to(vec3<f32>(x0.xy, plane_z(j)), dir, plane_z(j + 1u));
-        }
-        x0 = vec3<f32>(x0.xy, plane_z(k - 1u));
-    }
     if (dir.z < P.limits.y && guarded(SG_VIEW_MIN_Z)) {
         // The ray turned (nearly) parallel to the planes or back toward the camera: it leaves
         // the sweep here and keeps its direction for the environment lookup.

@@ -314,7 +314,7 @@ impl Renderer {
             features,
             debug: req.debug_view,
             safeguards_off: req.safeguards_off,
-            tile: state::tile_side(&self.ctx, prepared, req, &features),
+            spec: state::specialise(&self.ctx, prepared, req, &features),
         };
         let Renderer {
             ctx,
@@ -353,7 +353,7 @@ impl Renderer {
                 precision,
                 state::Passes {
                     sweep: Box::new(sweep),
-                    tile: key.tile,
+                    spec: key.spec,
                     lbm: lbm.as_ref().filter(|_| features.lbm),
                 },
                 textures,
@@ -369,8 +369,10 @@ struct PipelineKey {
     features: Features,
     debug: DebugView,
     safeguards_off: u32,
-    /// The side of the sweep's tiles (the `TILE` override; `state::tile_side`).
-    tile: u32,
+    /// The tiles' side, the planes a view sample reads the beams back from and whether the
+    /// light tiles are stepped in groups (the `TILE`, `BACK_PLANES` and `LIGHT_GROUPS`
+    /// overrides; `state::specialise`).
+    spec: state::Specialisation,
 }
 
 /// The sweep's pipelines for `passes`: each specialised, then compiled side by side. Compiling
@@ -393,7 +395,9 @@ fn compile(
         for c in constants.iter_mut() {
             match c.0 {
                 "SAFEGUARDS_OFF" => c.1 = key.safeguards_off as f64,
-                "TILE" => c.1 = key.tile as f64,
+                "TILE" => c.1 = key.spec.tile as f64,
+                "BACK_PLANES" => c.1 = key.spec.back_planes as f64,
+                "LIGHT_GROUPS" => c.1 = f64::from(u8::from(key.spec.light_groups)),
                 _ => {}
             }
         }

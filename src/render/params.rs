@@ -43,10 +43,10 @@ pub struct Params {
     /// every tile of the light window is dispatched).
     pub light_box: [f32; 4],
     /// x: planes of the beams' power before their segment kept at once (the view passes read
-    /// the unrefracted beams'; refracted beams deposit their own from y planes back;
-    /// `front_power_region` in beams.wgsl); y: planes back along its light line from which a
-    /// view sample reads it, those in a voxel (`beams_unscattered_through`,
-    /// `beams_light_through`); z: slots of deposited light; w unused.
+    /// the unrefracted beams'; refracted beams deposit their own from `BACK_PLANES` back;
+    /// `front_power_region` in beams.wgsl); z: slots of deposited light; y and w unused (the
+    /// planes back along its light line a view sample reads are the pipelines' `BACK_PLANES`
+    /// override).
     pub sweep: [u32; 4],
     /// The atlas of deposited light (`acc_level` in beams.wgsl): words per row, words per
     /// layer (a channel of a slot); the rest unused.

@@ -100,7 +100,7 @@ fn light_channels(features: &Features, debug: DebugView) -> u32 {
 
 struct Layout {
     grid: BeamGrid,
-    /// The side of the tiles of pixels and beams (`tile_side`).
+    /// The side of the tiles of pixels and beams (`Specialisation::tile`).
     tile: u32,
     beam_groups: u32,
     view_tiles_x: u32,
@@ -463,11 +463,10 @@ fn make_params(
             brick_dims[2],
             u32::from(layout.lists)
                 | u32::from(layout.unseen_light_ends) << 1
-                | u32::from(layout.skip_empty_view_tiles) << 2
-                | u32::from(layout.light_groups) << 3,
+                | u32::from(layout.skip_empty_view_tiles) << 2,
         ],
         light_box,
-        sweep: [layout.front_planes(), layout.back_planes, layout.deposit_slots, 0],
+        sweep: [layout.front_planes(), 0, layout.deposit_slots, 0],
         deposits: [
             layout.deposits.row_words as u32,
             layout.deposits.layer_words as u32,
@@ -634,8 +633,8 @@ pub(super) struct Passes<'a> {
     /// Gives the sweep's pipelines; asked once everything else of the render is set up, so
     /// that they can be compiled meanwhile.
     pub sweep: Box<dyn FnOnce() -> Result<[Arc<ComputePipeline>; 7], RenderError> + 'a>,
-    /// The side of the tiles the sweep's pipelines were specialised for (`tile_side`).
-    pub tile: u32,
+    /// What the sweep's pipelines were specialised for (`specialise`).
+    pub spec: Specialisation,
     pub lbm: Option<&'a super::lbm::Pipelines>,
 }
 
@@ -675,24 +674,84 @@ fn view_and_grid(
     Ok((view, grid, light))
 }
 
-/// The side of the tiles a render's sweep works in (the `TILE` override): `Pass::CPU_TILE` on a
-/// CPU driver where the rect's tiles and the light grid's of that side each fit one row of
-/// workgroups (the lists are dispatched as one), else `Pass::TILE`.
-/// A request `run` refuses gets `Pass::TILE`, and `run` says why.
-pub(super) fn tile_side(ctx: &Context, prepared: &PreparedScene, req: &RenderRequest, features: &Features) -> u32 {
-    if !ctx.is_cpu() || req.gpu_tiles || req.width == 0 || req.height == 0 {
-        return Pass::TILE;
+/// What a render's sweep pipelines are specialised for (overrides of the shaders), from the
+/// scene and the request: known before `run`, which the pipelines are compiled beside.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub(super) struct Specialisation {
+    /// The side of the tiles the sweep works in (the `TILE` override): `Pass::CPU_TILE` on a
+    /// CPU driver where the rect's tiles and the light grid's of that side each fit one row
+    /// of workgroups (the lists are dispatched as one), else `Pass::TILE`.
+    pub tile: u32,
+    /// The planes back along its light line from which a view sample reads the beams' power
+    /// (the `BACK_PLANES` override; `Layout::back_planes`): those in a voxel at the scene's
+    /// sample distance. Only view samples read back (the light views show the power on the
+    /// plane): 1 for them and for the backward transport, and no ring of refracted beams'
+    /// power.
+    pub back_planes: u32,
+    /// The listed light tiles are stepped over a view pass's planes in one dispatch (the
+    /// `LIGHT_GROUPS` override; `Layout::light_groups`).
+    pub light_groups: bool,
+}
+
+/// The specialisation of a render of `req` (a request `run` refuses gets the GPU's tiles and
+/// no light groups, and `run` says why).
+pub(super) fn specialise(
+    ctx: &Context,
+    prepared: &PreparedScene,
+    req: &RenderRequest,
+    features: &Features,
+) -> Specialisation {
+    let back_planes = if features.transport == LightTransport::Beams && !diagnoses_light(req) {
+        back_planes(prepared.scene.quality.sample_distance)
+    } else {
+        1
+    };
+    let mut spec = Specialisation {
+        tile: Pass::TILE,
+        back_planes,
+        light_groups: false,
+    };
+    if req.width == 0 || req.height == 0 {
+        return spec;
     }
     let Ok((view, grid, _)) = view_and_grid(prepared, req, features) else {
-        return Pass::TILE;
+        return spec;
     };
     let t = Pass::CPU_TILE;
     let fits = |w: u32, h: u32| tiles(w, t) as u64 * tiles(h, t) as u64 <= MAX_GROUPS_PER_ROW as u64;
-    if fits(view.rect.width(), view.rect.height()) && fits(grid.width, grid.height) {
-        t
-    } else {
-        Pass::TILE
+    if ctx.is_cpu() && !req.gpu_tiles && fits(view.rect.width(), view.rect.height()) && fits(grid.width, grid.height) {
+        spec.tile = t;
     }
+    let beam_groups = tiles(grid.width, spec.tile) * tiles(grid.height, spec.tile);
+    spec.light_groups = light_groups(light_lists(prepared, req, features, beam_groups), req, features);
+    spec
+}
+
+/// Whether the light tiles each plane steps are listed on the device (`Layout::light_lists`):
+/// beams are stepped only near the volume's box where nothing outside it absorbs and the
+/// image is all that is shown (the light diagnostics show the light outside the box too); the
+/// spread mode's clouds reach further than the margin.
+fn light_lists(prepared: &PreparedScene, req: &RenderRequest, features: &Features, beam_groups: u32) -> bool {
+    features.transport == LightTransport::Beams
+        && !features.scatter
+        && matches!(req.debug_view, DebugView::Image | DebugView::Medium)
+        && super::bricks::clear_outside(&prepared.tf)
+        && beam_groups <= MAX_GROUPS_PER_ROW
+}
+
+/// Whether the listed light tiles are stepped over a view pass's planes in one dispatch
+/// (`Layout::light_groups`; `light_groups` in beams.wgsl, `dark_tiles_end` there for these
+/// views).
+fn light_groups(lists: bool, req: &RenderRequest, features: &Features) -> bool {
+    lists && !req.per_plane_light && !features.refraction && !features.light_filter && !features.lbm
+}
+
+/// Whether the request shows the light on one plane (the light views: no view rays).
+fn diagnoses_light(req: &RenderRequest) -> bool {
+    matches!(
+        req.debug_view,
+        DebugView::Light | DebugView::LightDirection | DebugView::Intensity
+    )
 }
 
 pub(super) fn run(
@@ -704,7 +763,7 @@ pub(super) fn run(
     passes: Passes,
     cache: &mut Option<CachedTextures>,
 ) -> Result<RenderOutput, RenderError> {
-    let Passes { sweep, tile, lbm } = passes;
+    let Passes { sweep, spec, lbm } = passes;
     let (w, h) = (req.width, req.height);
     let max_2d = ctx.limits().max_image_dimension2_d;
     if w == 0 || h == 0 || w > max_2d || h > max_2d {
@@ -722,34 +781,23 @@ pub(super) fn run(
         ));
     }
     let (view, grid, light) = view_and_grid(prepared, req, &features)?;
-    // The light views: no view rays, the light on one plane.
-    let diagnoses_light = matches!(
-        req.debug_view,
-        DebugView::Light | DebugView::LightDirection | DebugView::Intensity
-    );
+    let diagnoses_light = diagnoses_light(req);
     let planes_run = if req.debug_view == DebugView::Image || req.debug_view == DebugView::Medium {
         view.planes
     } else {
         1 + (req.debug_depth.clamp(0.0, 1.0) * (view.planes - 1) as f32).round() as u32
     };
+    let tile = spec.tile;
     let mut layout = Layout::new(&view, grid, light_channels(&features, req.debug_view), tile);
-    if features.transport == LightTransport::Beams && !diagnoses_light {
-        // Only view samples read the beams' power back along their light line (the light
-        // views show the power on the plane): no ring of refracted beams' power for them.
-        layout.back_planes = back_planes(scene.quality.sample_distance);
-    }
+    layout.back_planes = spec.back_planes;
     let windows = light_windows(&view, &grid, light, features.refraction, tile);
-    // Beams are stepped only near the volume's box where nothing outside it absorbs and the
-    // image is all that is shown (the light diagnostics show the light outside the box too);
-    // the spread mode's clouds reach further than the margin.
-    layout.light_lists = features.transport == LightTransport::Beams
-        && !features.scatter
-        && matches!(req.debug_view, DebugView::Image | DebugView::Medium)
-        && super::bricks::clear_outside(&prepared.tf)
-        && layout.beam_groups <= MAX_GROUPS_PER_ROW;
-    // As `light_groups` in beams.wgsl (`dark_tiles_end` there, for these views).
-    layout.light_groups =
-        layout.light_lists && !req.per_plane_light && !features.refraction && !features.light_filter && !features.lbm;
+    layout.light_lists = light_lists(prepared, req, &features, layout.beam_groups);
+    layout.light_groups = light_groups(layout.light_lists, req, &features);
+    if layout.light_groups != spec.light_groups {
+        return Err(RenderError::Setup(
+            "internal: the sweep's pipelines were specialised for another light grid".into(),
+        ));
+    }
     layout.unseen_light_ends = !req.keep_unseen_light;
     layout.skip_empty_view_tiles = !req.step_empty_view_tiles;
     layout.refraction = features.refraction;
