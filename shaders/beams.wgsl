@@ -85,7 +85,7 @@ fn load_beam(ij: vec2<u32>, half: u32, z: f32) -> Beam {
 const NEVER: u32 = 0xffffffffu;
 
 fn light_tiles_listed() -> bool {
-    return P.light_box.w > 0.0;
+    return LIGHT_LISTS;
 }
 
 // The tile of the light grid of beam ij.

@@ -56,6 +56,11 @@ override BACK_PLANES: u32 = 1u;
 // pass's one-plane step beside the groups' took a ninth of a plain frame's light.
 override LIGHT_GROUPS: bool = false;
 
+// The light tiles each plane steps are listed on the device (`light_tiles_listed` in
+// beams.wgsl): the light pass's entry point then lists them instead of stepping the light
+// window's, which it would otherwise also run, masked, in every listing.
+override LIGHT_LISTS: bool = false;
+
 fn guarded(bit: u32) -> bool {
     return (SAFEGUARDS_OFF & bit) == 0u;
 }
@@ -111,7 +116,7 @@ struct Params {
     rect: vec4<u32>,                 // pixels whose rays can meet the volume: x0, y0, x1, y1 (half-open)
     tiles: vec4<u32>,                // view tiles in x, view workgroups, workgroups per dispatch row (all passes), light channels
     culling: vec4<u32>,              // bricks along x, y, z; bits: view tiles listed per plane (1), light tiles unseen end (2), empty view tiles skipped (4)
-    light_box: vec4<f32>,            // beams: texture units per view unit along each axis at most (xyz); w: 1 when light tiles are listed per plane
+    light_box: vec4<f32>,            // beams: texture units per view unit along each axis at most (xyz); w unused (LIGHT_LISTS)
     sweep: vec4<u32>,                // planes of the beams' front power kept (x), slots of deposited light (z); y, w unused (BACK_PLANES)
     deposits: vec4<u32>,             // atlas of deposited light: words per row (x), per layer (y: a channel of a slot); zw unused
 }

@@ -172,6 +172,7 @@ impl Features {
             // (`state::specialise`).
             ("BACK_PLANES", 1.0),
             ("LIGHT_GROUPS", 0.0),
+            ("LIGHT_LISTS", 0.0),
         ]
     }
 

@@ -369,9 +369,9 @@ struct PipelineKey {
     features: Features,
     debug: DebugView,
     safeguards_off: u32,
-    /// The tiles' side, the planes a view sample reads the beams back from and whether the
-    /// light tiles are stepped in groups (the `TILE`, `BACK_PLANES` and `LIGHT_GROUPS`
-    /// overrides; `state::specialise`).
+    /// The tiles' side, the planes a view sample reads the beams back from and how the light
+    /// tiles are listed and stepped (the `TILE`, `BACK_PLANES`, `LIGHT_LISTS` and
+    /// `LIGHT_GROUPS` overrides; `state::specialise`).
     spec: state::Specialisation,
 }
 
@@ -398,6 +398,7 @@ fn compile(
                 "TILE" => c.1 = key.spec.tile as f64,
                 "BACK_PLANES" => c.1 = key.spec.back_planes as f64,
                 "LIGHT_GROUPS" => c.1 = f64::from(u8::from(key.spec.light_groups)),
+                "LIGHT_LISTS" => c.1 = f64::from(u8::from(key.spec.light_lists)),
                 _ => {}
             }
         }

@@ -39,8 +39,8 @@ pub struct Params {
     /// view tiles whose rays meet no visible brick are skipped.
     pub culling: [u32; 4],
     /// Beams: texture units per view unit along each axis at most (to turn the margin of
-    /// `budget.z` into texture coordinates); w: 1 when light tiles are listed per plane (else
-    /// every tile of the light window is dispatched).
+    /// `budget.z` into texture coordinates); w unused (whether light tiles are listed is the
+    /// pipelines' `LIGHT_LISTS` override).
     pub light_box: [f32; 4],
     /// x: planes of the beams' power before their segment kept at once (the view passes read
     /// the unrefracted beams'; refracted beams deposit their own from `BACK_PLANES` back;

@@ -688,13 +688,16 @@ pub(super) struct Specialisation {
     /// plane): 1 for them and for the backward transport, and no ring of refracted beams'
     /// power.
     pub back_planes: u32,
+    /// The light tiles each plane steps are listed on the device (the `LIGHT_LISTS`
+    /// override; `Layout::light_lists`).
+    pub light_lists: bool,
     /// The listed light tiles are stepped over a view pass's planes in one dispatch (the
     /// `LIGHT_GROUPS` override; `Layout::light_groups`).
     pub light_groups: bool,
 }
 
 /// The specialisation of a render of `req` (a request `run` refuses gets the GPU's tiles and
-/// no light groups, and `run` says why).
+/// no light lists, and `run` says why).
 pub(super) fn specialise(
     ctx: &Context,
     prepared: &PreparedScene,
@@ -709,6 +712,7 @@ pub(super) fn specialise(
     let mut spec = Specialisation {
         tile: Pass::TILE,
         back_planes,
+        light_lists: false,
         light_groups: false,
     };
     if req.width == 0 || req.height == 0 {
@@ -723,7 +727,8 @@ pub(super) fn specialise(
         spec.tile = t;
     }
     let beam_groups = tiles(grid.width, spec.tile) * tiles(grid.height, spec.tile);
-    spec.light_groups = light_groups(light_lists(prepared, req, features, beam_groups), req, features);
+    spec.light_lists = light_lists(prepared, req, features, beam_groups);
+    spec.light_groups = light_groups(spec.light_lists, req, features);
     spec
 }
 
@@ -793,7 +798,7 @@ pub(super) fn run(
     let windows = light_windows(&view, &grid, light, features.refraction, tile);
     layout.light_lists = light_lists(prepared, req, &features, layout.beam_groups);
     layout.light_groups = light_groups(layout.light_lists, req, &features);
-    if layout.light_groups != spec.light_groups {
+    if (layout.light_lists, layout.light_groups) != (spec.light_lists, spec.light_groups) {
         return Err(RenderError::Setup(
             "internal: the sweep's pipelines were specialised for another light grid".into(),
         ));
@@ -902,7 +907,7 @@ pub(super) fn run(
                 deposit_cells[3] = (straight - every).to_bits();
             }
         }
-        ([scale[0], scale[1], scale[2], 1.0], every, spans)
+        ([scale[0], scale[1], scale[2], 0.0], every, spans)
     } else {
         ([0.0; 4], 0.0, vec![[NEVER, NEVER, 0, 0]; 2])
     };
