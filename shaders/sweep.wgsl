@@ -143,16 +143,18 @@ fn tiles_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_in
                 atomicStore(&light_args[light_list_slot(I.view_list % 2u, lt / 2u, lt % 2u) * 3u], 0u);
             }
             let parity = (I.view_list + 1u) % 2u;
+            // The ends, written once (a CPU driver runs every branch a workgroup takes, so a
+            // call in each would test the tile as many times).
+            let goes_on = light_tile_goes_on(lt, k + 1u, k + next);
             if (light_groups()) {
                 // One list: a dispatch steps the tiles over all the planes.
-                if (light_tile_goes_on(lt, k + 1u, k + next)) {
+                if (goes_on) {
                     append_light_tile(lt, light_list_slot(parity, 0u, 0u));
                 }
-            } else if (next == 1u) {
-                list_light_tile(lt, k + 1u, parity);
-            } else {
-                // The ends only: the lists per plane read the neighbours' (`light_main`).
-                _ = light_tile_goes_on(lt, k + 1u, k + next);
+            } else if (next == 1u && goes_on) {
+                // One plane: listed with its ends (`list_light_tile`). For several, the lists
+                // per plane read the neighbours' ends (`light_main`).
+                append_light_tile(lt, light_list_slot(parity, 0u, select(1u, 0u, light_tile_current(lt, k + 1u))));
             }
         }
         return;
