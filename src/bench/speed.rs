@@ -44,9 +44,15 @@ pub struct SpeedPlan {
     /// Edge of a tiny viewport whose time per plane is the fixed cost of a plane (its pixels
     /// cost next to nothing); 0 measures none.
     pub tiny_size: u32,
-    /// Timed frames per scene and size (the median is reported).
+    /// Timed frames per scene and size (the median is reported); the tiny viewport takes at
+    /// least `TINY_FRAMES` ([`SpeedPlan::frames_at`]).
     pub frames: u32,
 }
+
+/// Timed frames at the tiny viewport at least: each costs tens of milliseconds, and one frame
+/// there moves by a third between runs on a busy CPU (a core's other work weighs on every
+/// dispatch), which a median of several steadies.
+pub const TINY_FRAMES: u32 = 9;
 
 impl SpeedPlan {
     /// 128² to 1024², five frames each, and 8² for the fixed cost.
@@ -65,6 +71,15 @@ impl SpeedPlan {
             sizes: vec![128, 256],
             frames: 3,
             ..SpeedPlan::full(scenes)
+        }
+    }
+
+    /// Timed frames at a size: `frames`, or at the tiny viewport at least `TINY_FRAMES`.
+    pub fn frames_at(&self, tiny: bool) -> u32 {
+        if tiny {
+            self.frames.max(TINY_FRAMES)
+        } else {
+            self.frames
         }
     }
 
@@ -400,7 +415,14 @@ pub fn run(ctx: Arc<Context>, plan: &SpeedPlan, out: &Path, progress: bool) -> R
             if let Some(b) = &bar {
                 b.set_message(format!("{} at {size}²", s.name));
             }
-            rows.push(measure(&mut renderer, &prepared, &s.name, size, tiny, plan.frames)?);
+            rows.push(measure(
+                &mut renderer,
+                &prepared,
+                &s.name,
+                size,
+                tiny,
+                plan.frames_at(tiny),
+            )?);
             if let Some(b) = &bar {
                 b.inc(1);
             }
@@ -434,6 +456,7 @@ pub fn run(ctx: Arc<Context>, plan: &SpeedPlan, out: &Path, progress: bool) -> R
     let context = super::speed_report::Context {
         device: &device,
         frames: plan.frames,
+        tiny_frames: plan.frames_at(true),
         sizes: &plan.sizes,
         tiny_size: plan.tiny_size,
         load_before: load_before.as_deref(),
@@ -456,7 +479,23 @@ pub fn run(ctx: Arc<Context>, plan: &SpeedPlan, out: &Path, progress: bool) -> R
 
 #[cfg(test)]
 mod tests {
-    use super::line_fit;
+    use super::{line_fit, SpeedPlan, TINY_FRAMES};
+
+    #[test]
+    fn the_tiny_viewport_takes_several_frames_even_where_the_others_take_one() {
+        // On a CPU driver the plan times one frame per size; the fixed cost's frames cost tens
+        // of milliseconds, and their median is what the goal is read from.
+        let plan = SpeedPlan::for_device(Vec::new(), true, false);
+        assert_eq!(plan.frames, 1);
+        assert_eq!(plan.frames_at(false), 1);
+        assert_eq!(plan.frames_at(true), TINY_FRAMES);
+        // A plan that asks for more frames keeps them at the tiny viewport too.
+        let many = SpeedPlan {
+            frames: 20,
+            ..SpeedPlan::full(Vec::new())
+        };
+        assert_eq!(many.frames_at(true), 20);
+    }
 
     #[test]
     fn line_fit_recovers_a_line_and_refuses_one_point() {

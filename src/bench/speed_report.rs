@@ -9,6 +9,8 @@ use super::speed::{SpeedFit, SpeedRow};
 pub struct Context<'a> {
     pub device: &'a str,
     pub frames: u32,
+    /// Frames at the tiny viewport (`SpeedPlan::frames_at`).
+    pub tiny_frames: u32,
     pub sizes: &'a [u32],
     pub tiny_size: u32,
     pub load_before: Option<&'a str>,
@@ -92,8 +94,9 @@ pub fn write_markdown(path: &Path, rows: &[SpeedRow], fits: &[SpeedFit], c: &Con
     if c.tiny_size > 0 {
         let _ = write!(
             s,
-            "Fixed cost: ms per plane at {0}×{0}, where the pixels cost next to nothing. ",
-            c.tiny_size
+            "Fixed cost: ms per plane at {0}×{0}, where the pixels cost next to nothing (the median of \
+             {1} frames there). ",
+            c.tiny_size, c.tiny_frames
         );
     }
     s.push_str(
