@@ -166,10 +166,10 @@ impl Features {
             ("LBM", f(self.lbm)),
             ("SAMPLED_LAYERS", f(self.sampled_layers)),
             ("ACC_IMAGE", f(self.deposit_image)),
-            // The GPU's side; a render sets its own (`state::specialise`, `Renderer`).
+            // The GPU's side; a render sets its own (`state::plan`, `Renderer`).
             ("TILE", super::shaders::Pass::TILE as f64),
             // One plane (a voxel at Δs 1), and a plane per dispatch; a render sets its own
-            // (`state::specialise`).
+            // (`state::plan`).
             ("BACK_PLANES", 1.0),
             ("LIGHT_GROUPS", 0.0),
             ("LIGHT_LISTS", 0.0),

@@ -309,12 +309,13 @@ impl Renderer {
         if features.lbm && self.lbm.is_none() {
             self.lbm = Some(lbm::Pipelines::new(&self.ctx)?);
         }
+        let plan = state::plan(&self.ctx, prepared, req, &features);
         let key = PipelineKey {
             precision,
             features,
             debug: req.debug_view,
             safeguards_off: req.safeguards_off,
-            spec: state::specialise(&self.ctx, prepared, req, &features),
+            spec: plan.spec,
         };
         let Renderer {
             ctx,
@@ -353,7 +354,7 @@ impl Renderer {
                 precision,
                 state::Passes {
                     sweep: Box::new(sweep),
-                    spec: key.spec,
+                    plan,
                     lbm: lbm.as_ref().filter(|_| features.lbm),
                 },
                 textures,
@@ -371,7 +372,7 @@ struct PipelineKey {
     safeguards_off: u32,
     /// The tiles' side, the planes a view sample reads the beams back from and how the light
     /// tiles are listed and stepped (the `TILE`, `BACK_PLANES`, `LIGHT_LISTS` and
-    /// `LIGHT_GROUPS` overrides; `state::specialise`).
+    /// `LIGHT_GROUPS` overrides; `state::plan`).
     spec: state::Specialisation,
 }
 

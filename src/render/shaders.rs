@@ -109,7 +109,7 @@ impl Pass {
     /// The tile side on a CPU driver, where a workgroup is a loop over SIMD batches of 8
     /// invocations and smaller tiles follow the volume's outline more closely: fewer beams
     /// stepped before the light reaches anything or after no ray can read it, fewer rays
-    /// stepped through empty space (`state::specialise` picks it where its tiles fit a
+    /// stepped through empty space (`state::plan` picks it where its tiles fit a
     /// dispatch). The CT head at 256² (`compare.sh`): plain 485–502 → 387–403 ms, the same
     /// image to the bit.
     pub const CPU_TILE: u32 = 4;

@@ -633,8 +633,8 @@ pub(super) struct Passes<'a> {
     /// Gives the sweep's pipelines; asked once everything else of the render is set up, so
     /// that they can be compiled meanwhile.
     pub sweep: Box<dyn FnOnce() -> Result<[Arc<ComputePipeline>; 7], RenderError> + 'a>,
-    /// What the sweep's pipelines were specialised for (`specialise`).
-    pub spec: Specialisation,
+    /// The view and light grid, and what the sweep's pipelines were specialised for (`plan`).
+    pub plan: Plan,
     pub lbm: Option<&'a super::lbm::Pipelines>,
 }
 
@@ -675,7 +675,8 @@ fn view_and_grid(
 }
 
 /// What a render's sweep pipelines are specialised for (overrides of the shaders), from the
-/// scene and the request: known before `run`, which the pipelines are compiled beside.
+/// scene and the request: known before `run`, which the pipelines are compiled beside
+/// (`plan`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub(super) struct Specialisation {
     /// The side of the tiles the sweep works in (the `TILE` override): `Pass::CPU_TILE` on a
@@ -696,14 +697,18 @@ pub(super) struct Specialisation {
     pub light_groups: bool,
 }
 
-/// The specialisation of a render of `req` (a request `run` refuses gets the GPU's tiles and
-/// no light lists, and `run` says why).
-pub(super) fn specialise(
-    ctx: &Context,
-    prepared: &PreparedScene,
-    req: &RenderRequest,
-    features: &Features,
-) -> Specialisation {
+/// A render's view and light grid and the specialisation of its sweep, worked out before
+/// the pipelines are compiled (`run` takes them).
+pub(super) struct Plan {
+    pub spec: Specialisation,
+    /// The view, the light grid and the light's direction (`view_and_grid`), or why there
+    /// are none, which `run` reports after its own checks of the request.
+    geometry: Result<(ViewSetup, BeamGrid, glam::Vec3), RenderError>,
+}
+
+/// The plan of a render of `req` (a request without a view gets the GPU's tiles and no light
+/// lists, and `run` says why).
+pub(super) fn plan(ctx: &Context, prepared: &PreparedScene, req: &RenderRequest, features: &Features) -> Plan {
     let back_planes = if features.transport == LightTransport::Beams && !diagnoses_light(req) {
         back_planes(prepared.scene.quality.sample_distance)
     } else {
@@ -716,20 +721,25 @@ pub(super) fn specialise(
         light_groups: false,
     };
     if req.width == 0 || req.height == 0 {
-        return spec;
+        let geometry = Err(RenderError::Setup("an empty image has no view".into()));
+        return Plan { spec, geometry };
     }
-    let Ok((view, grid, _)) = view_and_grid(prepared, req, features) else {
-        return spec;
-    };
-    let t = Pass::CPU_TILE;
-    let fits = |w: u32, h: u32| tiles(w, t) as u64 * tiles(h, t) as u64 <= MAX_GROUPS_PER_ROW as u64;
-    if ctx.is_cpu() && !req.gpu_tiles && fits(view.rect.width(), view.rect.height()) && fits(grid.width, grid.height) {
-        spec.tile = t;
+    let geometry = view_and_grid(prepared, req, features);
+    if let Ok((view, grid, _)) = &geometry {
+        let t = Pass::CPU_TILE;
+        let fits = |w: u32, h: u32| tiles(w, t) as u64 * tiles(h, t) as u64 <= MAX_GROUPS_PER_ROW as u64;
+        if ctx.is_cpu()
+            && !req.gpu_tiles
+            && fits(view.rect.width(), view.rect.height())
+            && fits(grid.width, grid.height)
+        {
+            spec.tile = t;
+        }
+        let beam_groups = tiles(grid.width, spec.tile) * tiles(grid.height, spec.tile);
+        spec.light_lists = light_lists(prepared, req, features, beam_groups);
+        spec.light_groups = light_groups(spec.light_lists, req, features);
     }
-    let beam_groups = tiles(grid.width, spec.tile) * tiles(grid.height, spec.tile);
-    spec.light_lists = light_lists(prepared, req, features, beam_groups);
-    spec.light_groups = light_groups(spec.light_lists, req, features);
-    spec
+    Plan { spec, geometry }
 }
 
 /// Whether the light tiles each plane steps are listed on the device (`Layout::light_lists`):
@@ -768,7 +778,8 @@ pub(super) fn run(
     passes: Passes,
     cache: &mut Option<CachedTextures>,
 ) -> Result<RenderOutput, RenderError> {
-    let Passes { sweep, spec, lbm } = passes;
+    let Passes { sweep, plan, lbm } = passes;
+    let spec = plan.spec;
     let (w, h) = (req.width, req.height);
     let max_2d = ctx.limits().max_image_dimension2_d;
     if w == 0 || h == 0 || w > max_2d || h > max_2d {
@@ -785,7 +796,7 @@ pub(super) fn run(
                 .into(),
         ));
     }
-    let (view, grid, light) = view_and_grid(prepared, req, &features)?;
+    let (view, grid, light) = plan.geometry?;
     let diagnoses_light = diagnoses_light(req);
     let planes_run = if req.debug_view == DebugView::Image || req.debug_view == DebugView::Medium {
         view.planes
@@ -796,13 +807,8 @@ pub(super) fn run(
     let mut layout = Layout::new(&view, grid, light_channels(&features, req.debug_view), tile);
     layout.back_planes = spec.back_planes;
     let windows = light_windows(&view, &grid, light, features.refraction, tile);
-    layout.light_lists = light_lists(prepared, req, &features, layout.beam_groups);
-    layout.light_groups = light_groups(layout.light_lists, req, &features);
-    if (layout.light_lists, layout.light_groups) != (spec.light_lists, spec.light_groups) {
-        return Err(RenderError::Setup(
-            "internal: the sweep's pipelines were specialised for another light grid".into(),
-        ));
-    }
+    layout.light_lists = spec.light_lists;
+    layout.light_groups = spec.light_groups;
     layout.unseen_light_ends = !req.keep_unseen_light;
     layout.skip_empty_view_tiles = !req.step_empty_view_tiles;
     layout.refraction = features.refraction;
