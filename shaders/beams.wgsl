@@ -336,8 +336,14 @@ fn light_tile_current(t: u32, k: u32) -> bool {
 // the view pass): its ends and its list in one dispatch.
 fn list_light_tile(t: u32, k: u32, parity: u32) {
     if (light_tile_goes_on(t, k, k)) {
-        append_light_tile(t, light_list_slot(parity, 0u, select(1u, 0u, light_tile_current(t, k))));
+        list_going_light_tile(t, k, parity);
     }
+}
+
+// Lists light tile t, which goes on (`light_tile_goes_on`), for plane k alone, in the lists of
+// `parity`: with the tiles stepped on plane k-1, or at the edge.
+fn list_going_light_tile(t: u32, k: u32, parity: u32) {
+    append_light_tile(t, light_list_slot(parity, 0u, select(1u, 0u, light_tile_current(t, k))));
 }
 
 // Lists light tile t for the planes k ..= last of a view pass, in the lists of `parity`,

@@ -152,9 +152,9 @@ fn tiles_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_in
                     append_light_tile(lt, light_list_slot(parity, 0u, 0u));
                 }
             } else if (next == 1u && goes_on) {
-                // One plane: listed with its ends (`list_light_tile`). For several, the lists
-                // per plane read the neighbours' ends (`light_main`).
-                append_light_tile(lt, light_list_slot(parity, 0u, select(1u, 0u, light_tile_current(lt, k + 1u))));
+                // One plane: listed with its ends. For several, the lists per plane read the
+                // neighbours' ends (`light_main`).
+                list_going_light_tile(lt, k + 1u, parity);
             }
         }
         return;
