@@ -40,15 +40,15 @@ struct Beam {
 }
 
 const BEAM_AUX: u32 = 0u;
-const BEAM_POS: u32 = 2u;
+const BEAM_POS: u32 = 1u;
 
 // Beam ij's texel of layer `layer` (BEAM_AUX or BEAM_POS) in half `half` of `beam_state`.
 fn beam_texel(ij: vec2<u32>, layer: u32, half: u32) -> vec4<f32> {
-    return textureLoad(beam_state, vec2<i32>(ij), i32(layer + half));
+    return textureLoad(beam_state, beam_pair_texel(ij, half), i32(layer));
 }
 
 fn store_beam_texel(ij: vec2<u32>, layer: u32, half: u32, v: vec4<f32>) {
-    textureStore(beam_state, vec2<i32>(ij), i32(layer + half), v);
+    textureStore(beam_state, beam_pair_texel(ij, half), i32(layer), v);
 }
 
 fn load_beam(ij: vec2<u32>, half: u32, z: f32) -> Beam {
@@ -823,7 +823,7 @@ fn beams_init(ij: vec2<u32>) {
     }
     if (SCATTER) {
         for (var j = 0; j < i32(SCATTER_LAYERS); j++) {
-            textureStore(beam_scatter, vec2<i32>(ij), j, vec4<f32>(0.0));
+            textureStore(beam_scatter, beam_pair_texel(ij, 0u), j, vec4<f32>(0.0));
         }
     }
     if (!REFRACTION) {
@@ -1711,10 +1711,10 @@ fn cut_cloud(centre: vec3<f32>, sigma: f32, jitter: f32) -> CutCloud {
 // `u_before` to b.power over the segment from x0 to b.pos (front value `value_front`, back
 // value b.value); deposits its scattered light on plane k. du, dv: the beam's cell.
 fn spread_step(ij: vec2<u32>, index: u32, k: u32, b: Beam, u_before: vec3<f32>, x0: vec3<f32>, value_front: f32, du: vec3<f32>, dv: vec3<f32>) {
-    let t = vec2<i32>(ij);
-    let read = i32(SCATTER_LAYERS * ((k - 1u) % 2u));
-    let write = i32(SCATTER_LAYERS * (k % 2u));
-    let a = textureLoad(beam_scatter, t, read);
+    // This beam's texels of plane k-1's half (read) and of plane k's (written).
+    let t = beam_pair_texel(ij, (k - 1u) % 2u);
+    let tw = beam_pair_texel(ij, k % 2u);
+    let a = textureLoad(beam_scatter, t, 0);
     var scattered = a.rgb;
     let l = length(b.pos - x0);
     let ratio = l / P.plane.y;
@@ -1728,11 +1728,11 @@ fn spread_step(ij: vec2<u32>, index: u32, k: u32, b: Beam, u_before: vec3<f32>, 
     let tau = -log(max(1.0 - alpha, 1e-30));
     let sc = scatter_coefficients(split.y);
     let albedo = clamp(sc.x, 0.0, 1.0);
-    let m_before = textureLoad(beam_scatter, t, read + 1);
-    let e_before = textureLoad(beam_scatter, t, read + 2);
+    let m_before = textureLoad(beam_scatter, t, 1);
+    let e_before = textureLoad(beam_scatter, t, 2);
     let m = spread_moments(m_before, albedo * tau, sc.y, l);
-    let f_before = textureLoad(beam_scatter, t, read + 3);
-    let gf_before = textureLoad(beam_scatter, t, read + 4);
+    let f_before = textureLoad(beam_scatter, t, 3);
+    let gf_before = textureLoad(beam_scatter, t, 4);
     let fourth = spread_fourth(Fourth(f_before.x, f_before.y, f_before.z, f_before.w, gf_before.x, gf_before.y, m_before.y, m_before.z), m_before.x, albedo * tau, sc.y, l);
     // The lag of all the light behind the beam, s − E[z]: it grows by ∫(1 − P₁) over the
     // segment, P₁ = e^{−(1−g)∫b} at the local g (exact where g is constant).
@@ -1777,11 +1777,11 @@ fn spread_step(ij: vec2<u32>, index: u32, k: u32, b: Beam, u_before: vec3<f32>, 
     // Scattered light goes on losing only what is absorbed: (1 − ω) of the extinction, and
     // the medium; the unscattered light gives it ω of what the particles took.
     scattered = scattered * (1.0 - left) * exp(-(1.0 - albedo) * tau) * t_medium + u_before * alpha * albedo * t_medium;
-    textureStore(beam_scatter, t, write, vec4<f32>(scattered, lag));
-    textureStore(beam_scatter, t, write + 1, m);
-    textureStore(beam_scatter, t, write + 2, e);
-    textureStore(beam_scatter, t, write + 3, vec4<f32>(fourth.q4, fourth.m, fourth.h, fourth.k));
-    textureStore(beam_scatter, t, write + 4, vec4<f32>(fourth.g, fourth.f, outside, 0.0));
+    textureStore(beam_scatter, tw, 0, vec4<f32>(scattered, lag));
+    textureStore(beam_scatter, tw, 1, m);
+    textureStore(beam_scatter, tw, 2, e);
+    textureStore(beam_scatter, tw, 3, vec4<f32>(fourth.q4, fourth.m, fourth.h, fourth.k));
+    textureStore(beam_scatter, tw, 4, vec4<f32>(fourth.g, fourth.f, outside, 0.0));
     if (max(scattered.r, max(scattered.g, scattered.b)) <= 0.0) {
         return;
     }

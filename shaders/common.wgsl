@@ -174,15 +174,25 @@ const VIEW_COLOR: u32 = 0u;
 const VIEW_LIGHT: u32 = 1u;
 const VIEW_MEDIUM: u32 = 2u;
 
-// Forward beams: a texel per beam of the beam_grid.x × beam_grid.y grid, in two halves
-// (plane parity): layer h holds v.z, the data value, the shadow depth and the plane stored on
-// (`BEAM_AUX`), layer 2 + h with refraction x, y on the plane and v.x, v.y (`BEAM_POS`). An
-// image, not a buffer: a CPU driver fetches texels for all invocations at once, while it
-// loads a storage buffer inside a branch invocation by invocation and component by
-// component (the neighbours' records are read inside one).
+// Forward beams: two texels per beam of the beam_grid.x × beam_grid.y grid, one per half
+// (plane parity), side by side (`beam_pair_texel`): layer 0 holds v.z, the data value, the
+// shadow depth and the plane stored on (`BEAM_AUX`), layer 1 with refraction x, y on the
+// plane and v.x, v.y (`BEAM_POS`). An image, not a buffer: a CPU driver fetches texels for
+// all invocations at once, while it loads a storage buffer inside a branch invocation by
+// invocation and component by component (the neighbours' records are read inside one).
 @group(0) @binding(14) var beam_state: texture_storage_2d_array<rgba32float, read_write>;
+// The texel of beam ij in `beam_state`, `beam_power` and `beam_scatter` for `half` (0 or 1)
+// of a pair of halves or regions: the two side by side along x. A step reads a beam's texel
+// of one half and writes the other's, which then shares its cache line: the read has just
+// brought the line in. In separate layers, megabytes apart, the store found a line last
+// touched two planes before, and on a CPU driver, which stores lane by lane, those misses
+// took a tenth of the refracted light pass.
+fn beam_pair_texel(ij: vec2<u32>, half: u32) -> vec2<i32> {
+    return vec2<i32>(vec2<u32>(2u * ij.x + half, ij.y));
+}
 // The beams' rgb power (relative to a plane-0 cell) by region (`load_beam_power`): regions 0
-// and 1 the halves, from 2 on the power before the segment to a plane (`front_power_region`).
+// and 1 the halves, from 2 on the power before the segment to a plane (`front_power_region`);
+// regions 2r and 2r + 1 side by side (`beam_pair_texel`) in the layers of pair r.
 @group(0) @binding(16) var beam_power: texture_storage_2d_array<rg32uint, read_write>;
 // Light deposited on the planes in turn (fixed point, see `ACC_SCALE`; `acc_level`).
 @group(0) @binding(17) var<storage, read_write> light_acc: array<atomic<u32>>;
@@ -212,11 +222,12 @@ const VIEW_TILE_BENT: u32 = 0x80000000u;
 @group(0) @binding(24) var<storage, read_write> tile_lists: array<u32>;
 @group(0) @binding(25) var<storage, read_write> tile_args: array<atomic<u32>>;
 // Spread mode (SCATTER): per data value (the pre-integration tables' lattice) the albedo ω
-// and the anisotropy g; per beam and half h of the ping-pong pair three texels, in layers
-// 3h, 3h + 1, 3h + 2: the scattered power (rgb) and the lag of all its light behind the beam
-// (s − E[z], view units); the spread moments (1 − P₂, C, R;
-// `transfer::scattering::SpreadMoments`) and the scattering optical depth along its path; the
-// state of the face its light entered by (`spread_entry`).
+// and the anisotropy g; per beam and half of the ping-pong pair, side by side
+// (`beam_pair_texel`), SCATTER_LAYERS texels in layers 0 to 4 (beams.wgsl): the scattered
+// power (rgb) and the lag of all its light behind the beam (s − E[z], view units); the spread
+// moments (1 − P₂, C, R; `transfer::scattering::SpreadMoments`) and the scattering optical
+// depth along its path; the state of the face its light entered by (`spread_entry`); two of
+// the fourth moment.
 @group(0) @binding(26) var<storage, read> scatter_table: array<vec4<f32>>;
 @group(0) @binding(27) var beam_scatter: texture_storage_2d_array<rgba32float, read_write>;
 
@@ -307,24 +318,27 @@ fn store_view_shade(px: vec2<u32>, item: u32, v: vec4<f32>) {
 }
 
 // Beam ij's power in region `region` of `beam_power`: f16 rgb in one layer, or with
-// F32_STATE f32 rgb in two (r, g and b).
+// F32_STATE f32 rgb in two (r, g and b). Regions come in pairs, 2r and 2r + 1 side by side in
+// x in the layers of pair r (`beam_pair_texel`).
 fn load_beam_power(region: u32, ij: vec2<u32>) -> vec3<f32> {
+    let t = beam_pair_texel(ij, region % 2u);
     if (F32_STATE) {
-        let a = textureLoad(beam_power, vec2<i32>(ij), i32(2u * region)).xy;
-        let b = textureLoad(beam_power, vec2<i32>(ij), i32(2u * region + 1u)).x;
+        let a = textureLoad(beam_power, t, i32(2u * (region / 2u))).xy;
+        let b = textureLoad(beam_power, t, i32(2u * (region / 2u) + 1u)).x;
         return vec3<f32>(bitcast<f32>(a.x), bitcast<f32>(a.y), bitcast<f32>(b));
     }
-    let a = textureLoad(beam_power, vec2<i32>(ij), i32(region)).xy;
+    let a = textureLoad(beam_power, t, i32(region / 2u)).xy;
     return vec4<f32>(unpack2x16float(a.x), unpack2x16float(a.y)).rgb;
 }
 
 fn store_beam_power(region: u32, ij: vec2<u32>, v: vec3<f32>) {
+    let t = beam_pair_texel(ij, region % 2u);
     if (F32_STATE) {
-        textureStore(beam_power, vec2<i32>(ij), i32(2u * region), vec4<u32>(bitcast<u32>(v.x), bitcast<u32>(v.y), 0u, 0u));
-        textureStore(beam_power, vec2<i32>(ij), i32(2u * region + 1u), vec4<u32>(bitcast<u32>(v.z), 0u, 0u, 0u));
+        textureStore(beam_power, t, i32(2u * (region / 2u)), vec4<u32>(bitcast<u32>(v.x), bitcast<u32>(v.y), 0u, 0u));
+        textureStore(beam_power, t, i32(2u * (region / 2u) + 1u), vec4<u32>(bitcast<u32>(v.z), 0u, 0u, 0u));
         return;
     }
-    textureStore(beam_power, vec2<i32>(ij), i32(region), vec4<u32>(pack2x16float(v.xy), pack2x16float(vec2<f32>(v.z, 0.0)), 0u, 0u));
+    textureStore(beam_power, t, i32(region / 2u), vec4<u32>(pack2x16float(v.xy), pack2x16float(vec2<f32>(v.z, 0.0)), 0u, 0u));
 }
 
 fn load_back_light(i: u32) -> vec4<f32> {

@@ -570,11 +570,13 @@ impl State {
             )?,
         };
         // The per-plane state that the shaders read inside branches: images, layers as
-        // `shaders/common.wgsl` describes them. The beams' records: v.z, data value, shadow
+        // `shaders/common.wgsl` describes them. A beam's texels of the two halves of a pair lie
+        // side by side along x (`beam_pair_texel`). The beams' records: v.z, data value, shadow
         // depth and plane in the two halves, and with refraction position and v.xy. Their power
-        // by region: the two halves, and each beam's power on the planes before (the view reads
-        // the unrefracted beams'; refracted ones deposit theirs a voxel back), f16 rgb in one
-        // layer each or f32 in two. The spread mode's five texels per beam and half. The view
+        // by region, two regions to a layer: the two halves, and each beam's power on the
+        // planes before (the view reads the unrefracted beams'; refracted ones deposit theirs a
+        // voxel back), f16 rgb in one layer each or f32 in two. The spread mode's five texels per
+        // beam and half. The view
         // rays' aux and (with refraction) position and direction; their colour, light and (with
         // the medium) its transmittance, f16 in one layer each or f32 in two.
         let regions = if refraction && layout.back_planes == 1 {
@@ -584,12 +586,14 @@ impl State {
         };
         let words = if precision == Precision::F32 { 2 } else { 1 };
         let grid = [layout.grid.width, layout.grid.height];
+        // A beam's texels of the two halves of a pair side by side (`beam_pair_texel`).
+        let pairs = [2 * grid[0], grid[1]];
         let pixels_2d = [view.width, view.height];
         let (rgba32f, rg32u) = (vk::Format::R32G32B32A32_SFLOAT, vk::Format::R32G32_UINT);
         let image_specs: [(&str, vk::Format, [u32; 2], u32, bool); 5] = [
-            ("beam_state", rgba32f, grid, if refraction { 4 } else { 2 }, beams),
-            ("beam_power", rg32u, grid, regions * words, beams),
-            ("beam_scatter", rgba32f, grid, 2 * SCATTER_LAYERS, features.scatter),
+            ("beam_state", rgba32f, pairs, if refraction { 2 } else { 1 }, beams),
+            ("beam_power", rg32u, pairs, regions.div_ceil(2) * words, beams),
+            ("beam_scatter", rgba32f, pairs, SCATTER_LAYERS, features.scatter),
             ("view_rays", rgba32f, pixels_2d, if refraction { 2 } else { 1 }, true),
             (
                 "view_shade",
