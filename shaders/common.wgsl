@@ -117,7 +117,7 @@ struct Params {
     tiles: vec4<u32>,                // view tiles in x, view workgroups, workgroups per dispatch row (all passes), light channels
     culling: vec4<u32>,              // bricks along x, y, z; bits: view tiles listed per plane (1), light tiles unseen end (2), empty view tiles skipped (4)
     light_box: vec4<f32>,            // beams: texture units per view unit along each axis at most (xyz); w unused (LIGHT_LISTS)
-    sweep: vec4<u32>,                // planes of the beams' front power kept (x), slots of deposited light (z); y, w unused (BACK_PLANES)
+    sweep: vec4<u32>,                // planes of the beams' front power kept (x), regions of a beam's power record (y; 0: in pairs), slots of deposited light (z); w unused (BACK_PLANES)
     deposits: vec4<u32>,             // atlas of deposited light: words per row (x), per layer (y: a channel of a slot); zw unused
 }
 
@@ -192,7 +192,7 @@ fn beam_pair_texel(ij: vec2<u32>, half: u32) -> vec2<i32> {
 }
 // The beams' rgb power (relative to a plane-0 cell) by region (`load_beam_power`): regions 0
 // and 1 the halves, from 2 on the power before the segment to a plane (`front_power_region`);
-// regions 2r and 2r + 1 side by side (`beam_pair_texel`) in the layers of pair r.
+// a record of them per beam, or in pairs (`beam_power_texel`).
 @group(0) @binding(16) var beam_power: texture_storage_2d_array<rg32uint, read_write>;
 // Light deposited on the planes in turn (fixed point, see `ACC_SCALE`; `acc_level`).
 @group(0) @binding(17) var<storage, read_write> light_acc: array<atomic<u32>>;
@@ -318,27 +318,48 @@ fn store_view_shade(px: vec2<u32>, item: u32, v: vec4<f32>) {
 }
 
 // Beam ij's power in region `region` of `beam_power`: f16 rgb in one layer, or with
-// F32_STATE f32 rgb in two (r, g and b). Regions come in pairs, 2r and 2r + 1 side by side in
-// x in the layers of pair r (`beam_pair_texel`).
+// F32_STATE f32 rgb in two (r, g and b). Each beam's regions side by side along x, a record
+// per beam (P.sweep.y regions), or where such records would make the image too wide
+// (P.sweep.y 0), regions 2r and 2r + 1 side by side in the layers of pair r
+// (`beam_pair_texel`). In records, a step's store of the power before its segment
+// (`front_power_region`) shares the cache line of the half it reads and writes; in pairs it
+// found a line last touched a ring's length of planes before.
+fn beam_power_texel(ij: vec2<u32>, region: u32) -> vec2<i32> {
+    if (P.sweep.y > 0u) {
+        return vec2<i32>(vec2<u32>(P.sweep.y * ij.x + region, ij.y));
+    }
+    return beam_pair_texel(ij, region % 2u);
+}
+
+// The layer of region `region` in `beam_power` (f16; with F32_STATE the first of two).
+fn beam_power_layer(region: u32) -> u32 {
+    if (P.sweep.y > 0u) {
+        return 0u;
+    }
+    return region / 2u;
+}
+
 fn load_beam_power(region: u32, ij: vec2<u32>) -> vec3<f32> {
-    let t = beam_pair_texel(ij, region % 2u);
+    let t = beam_power_texel(ij, region);
+    let layer = beam_power_layer(region);
     if (F32_STATE) {
-        let a = textureLoad(beam_power, t, i32(2u * (region / 2u))).xy;
-        let b = textureLoad(beam_power, t, i32(2u * (region / 2u) + 1u)).x;
+        let a = textureLoad(beam_power, t, i32(2u * layer)).xy;
+        let b = textureLoad(beam_power, t, i32(2u * layer + 1u)).x;
         return vec3<f32>(bitcast<f32>(a.x), bitcast<f32>(a.y), bitcast<f32>(b));
     }
-    let a = textureLoad(beam_power, t, i32(region / 2u)).xy;
+    let a = textureLoad(beam_power, t, i32(layer)).xy;
     return vec4<f32>(unpack2x16float(a.x), unpack2x16float(a.y)).rgb;
 }
 
 fn store_beam_power(region: u32, ij: vec2<u32>, v: vec3<f32>) {
-    let t = beam_pair_texel(ij, region % 2u);
+    let t = beam_power_texel(ij, region);
+    let layer = beam_power_layer(region);
     if (F32_STATE) {
-        textureStore(beam_power, t, i32(2u * (region / 2u)), vec4<u32>(bitcast<u32>(v.x), bitcast<u32>(v.y), 0u, 0u));
-        textureStore(beam_power, t, i32(2u * (region / 2u) + 1u), vec4<u32>(bitcast<u32>(v.z), 0u, 0u, 0u));
+        textureStore(beam_power, t, i32(2u * layer), vec4<u32>(bitcast<u32>(v.x), bitcast<u32>(v.y), 0u, 0u));
+        textureStore(beam_power, t, i32(2u * layer + 1u), vec4<u32>(bitcast<u32>(v.z), 0u, 0u, 0u));
         return;
     }
-    textureStore(beam_power, t, i32(region / 2u), vec4<u32>(pack2x16float(v.xy), pack2x16float(vec2<f32>(v.z, 0.0)), 0u, 0u));
+    textureStore(beam_power, t, i32(layer), vec4<u32>(pack2x16float(v.xy), pack2x16float(vec2<f32>(v.z, 0.0)), 0u, 0u));
 }
 
 fn load_back_light(i: u32) -> vec4<f32> {

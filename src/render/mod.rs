@@ -121,6 +121,12 @@ pub struct RenderRequest {
     /// real render.
     #[doc(hidden)]
     pub gpu_tiles: bool,
+    /// Keep the beams' power in pairs of regions where a render would keep a record of them
+    /// per beam (`beam_power_texel` in common.wgsl; pairs only where a row of records is wider
+    /// than the device's widest image: the same image to the bit). Tests only: false in every
+    /// real render.
+    #[doc(hidden)]
+    pub power_in_pairs: bool,
     /// Read the deposited light as a storage buffer where a render would read it through an
     /// image over the same memory (a CPU driver, `Features::deposit_image`: the same image
     /// to the bit). Tests only: false in every real render.
@@ -154,6 +160,7 @@ impl RenderRequest {
             step_empty_view_tiles: false,
             per_plane_light: false,
             gpu_tiles: false,
+            power_in_pairs: false,
             buffer_deposit_reads: false,
             pass_timings: false,
             keep_coarse_volume: false,

@@ -141,6 +141,8 @@ struct Layout {
     /// (`beams_unscattered_through` and `beams_light_through` in beams.wgsl): those in a
     /// voxel.
     back_planes: u32,
+    /// The device's widest image side (`power_records`).
+    max_image_side: u32,
 }
 
 impl Layout {
@@ -165,6 +167,7 @@ impl Layout {
             deposits: DepositLayout::default(),
             atlas: (0, 0),
             back_planes: 1,
+            max_image_side: u32::MAX,
         }
     }
 }
@@ -278,6 +281,30 @@ impl Layout {
     fn front_planes(&self) -> u32 {
         let read = if self.refraction { 1 } else { self.view_planes };
         read + self.back_planes
+    }
+
+    /// Regions of the beams' power (`load_beam_power` in common.wgsl): the two halves, and
+    /// the power before the segment to each of the planes kept (`front_planes`), but for
+    /// refracted beams that deposit what they carry on the plane (a voxel is one plane).
+    fn power_regions(&self) -> u32 {
+        if self.refraction && self.back_planes == 1 {
+            2
+        } else {
+            2 + self.front_planes()
+        }
+    }
+
+    /// The regions of a beam's power laid side by side along x, a record per beam
+    /// (`beam_power_texel` in common.wgsl), where a row of records fits the device's widest
+    /// image; else 0, the regions in pairs.
+    fn power_records(&self) -> u32 {
+        let regions = self.power_regions();
+        let side = image_side(regions.saturating_mul(self.grid.width), self.max_image_side);
+        if side <= self.max_image_side {
+            regions
+        } else {
+            0
+        }
     }
 }
 
@@ -466,7 +493,7 @@ fn make_params(
                 | u32::from(layout.skip_empty_view_tiles) << 2,
         ],
         light_box,
-        sweep: [layout.front_planes(), 0, layout.deposit_slots, 0],
+        sweep: [layout.front_planes(), layout.power_records(), layout.deposit_slots, 0],
         deposits: [
             layout.deposits.row_words as u32,
             layout.deposits.layer_words as u32,
@@ -579,11 +606,8 @@ impl State {
         // beam and half. The view
         // rays' aux and (with refraction) position and direction; their colour, light and (with
         // the medium) its transmittance, f16 in one layer each or f32 in two.
-        let regions = if refraction && layout.back_planes == 1 {
-            2
-        } else {
-            2 + layout.front_planes()
-        };
+        let regions = layout.power_regions();
+        let records = layout.power_records();
         let words = if precision == Precision::F32 { 2 } else { 1 };
         let grid = [layout.grid.width, layout.grid.height];
         // A beam's texels of the two halves of a pair side by side (`beam_pair_texel`).
@@ -592,7 +616,11 @@ impl State {
         let (rgba32f, rg32u) = (vk::Format::R32G32B32A32_SFLOAT, vk::Format::R32G32_UINT);
         let image_specs: [(&str, vk::Format, [u32; 2], u32, bool); 5] = [
             ("beam_state", rgba32f, pairs, if refraction { 2 } else { 1 }, beams),
-            ("beam_power", rg32u, pairs, regions.div_ceil(2) * words, beams),
+            if records > 0 {
+                ("beam_power", rg32u, [records * grid[0], grid[1]], words, beams)
+            } else {
+                ("beam_power", rg32u, pairs, regions.div_ceil(2) * words, beams)
+            },
             ("beam_scatter", rgba32f, pairs, SCATTER_LAYERS, features.scatter),
             ("view_rays", rgba32f, pixels_2d, if refraction { 2 } else { 1 }, true),
             (
@@ -809,6 +837,8 @@ pub(super) fn run(
     };
     let tile = spec.tile;
     let mut layout = Layout::new(&view, grid, light_channels(&features, req.debug_view), tile);
+    // A side of 0 admits no record of the beams' power: pairs (`Layout::power_records`).
+    layout.max_image_side = if req.power_in_pairs { 0 } else { max_2d };
     layout.back_planes = spec.back_planes;
     let windows = light_windows(&view, &grid, light, features.refraction, tile);
     layout.light_lists = spec.light_lists;
