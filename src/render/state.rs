@@ -600,12 +600,13 @@ impl State {
         // `shaders/common.wgsl` describes them. A beam's texels of the two halves of a pair lie
         // side by side along x (`beam_pair_texel`). The beams' records: v.z, data value, shadow
         // depth and plane in the two halves, and with refraction position and v.xy. Their power
-        // by region, two regions to a layer: the two halves, and each beam's power on the
-        // planes before (the view reads the unrefracted beams'; refracted ones deposit theirs a
-        // voxel back), f16 rgb in one layer each or f32 in two. The spread mode's five texels per
-        // beam and half. The view
-        // rays' aux and (with refraction) position and direction; their colour, light and (with
-        // the medium) its transmittance, f16 in one layer each or f32 in two.
+        // by region (the two halves, and each beam's power on the planes before: the view reads
+        // the unrefracted beams', refracted ones deposit theirs a voxel back), f16 rgb in one
+        // layer or f32 in two: a record of a beam's regions side by side, or where a row of
+        // records is too wide, two regions to a layer (`Layout::power_records`). The spread
+        // mode's five texels per beam and half. The view rays' aux and (with refraction)
+        // position and direction; their colour, light and (with the medium) its transmittance,
+        // f16 in one layer each or f32 in two.
         let regions = layout.power_regions();
         let records = layout.power_records();
         let words = if precision == Precision::F32 { 2 } else { 1 };
