@@ -761,8 +761,12 @@ fn deposit_scale(z: f32, d: vec3<f32>) -> f32 {
 // Whether a view sample may read what a beam at p deposits up to `reach` (view units) around
 // it: p is in a cell of `deposit_cells` (every cell within the view's reading margin and a
 // straight beam's reach of one where the light can change), or its deposit reaches further
-// than that; elsewhere no view sample composites anything or carries the light on to a
-// segment that does.
+// than that. Elsewhere no view sample composites anything or carries the light on to a
+// segment that does, as long as no view segment crosses more than the margin's three steps
+// sideways between two planes (`light_tiles::margins`). Refraction can turn a ray at a rim
+// further than that before it leaves the sweep: such a segment reads the light at its back
+// end up to 50 steps from its particles, where beams may not have deposited (one pixel of
+// the CT head at 256², by 0.0002).
 fn deposit_read(p: vec3<f32>, reach: f32) -> bool {
     let size = vec3<u32>(deposit_header[0], deposit_header[1], deposit_header[2]);
     if (size.x == 0u || reach > bitcast<f32>(deposit_header[3])) {

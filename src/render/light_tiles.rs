@@ -19,7 +19,12 @@ pub const NEVER: u32 = u32::MAX;
 /// listed per plane, in view units: (every beam's, a straight beam's). A view sample sees a
 /// particle or an index change at most a voxel outside the box (trilinear sampling, one more
 /// for the gradient), and reads the light up to a view segment either side (three steps, for
-/// oblique rays) and, without refraction, in the cells around its light line (two cells).
+/// oblique rays: up to 72° from the planes' normal) and, without refraction, in the cells
+/// around its light line (two cells). Refraction can turn a view ray further, up to
+/// `MIN_VIEW_DIR_Z` (about 50 steps sideways per plane) before it leaves the sweep. A margin
+/// that wide would give up most of what the margins save (with every beam depositing, the CT
+/// head's light pass at 384² takes 6–18 % longer), so the few segments that graze a rim that
+/// steeply may read light the beams left out (measured in `deposit_read`, beams.wgsl).
 /// With refraction the light is the beams' deposits, which reach half a footprint and a
 /// texel of its level beyond a beam, and the view's bilinear read one texel more
 /// (`deposit_reach` in beams.wgsl, per beam); a straight beam's footprint is its cell, at most
