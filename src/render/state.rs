@@ -141,8 +141,11 @@ struct Layout {
     /// (`beams_unscattered_through` and `beams_light_through` in beams.wgsl): those in a
     /// voxel.
     back_planes: u32,
-    /// The device's widest image side (`power_records`).
+    /// The device's widest image side (`power_records`, `beam_row_shift`).
     max_image_side: u32,
+    /// Keep the beams' power in pairs of regions even where records fit
+    /// (`RenderRequest::power_in_pairs`).
+    power_in_pairs: bool,
 }
 
 impl Layout {
@@ -168,6 +171,7 @@ impl Layout {
             atlas: (0, 0),
             back_planes: 1,
             max_image_side: u32::MAX,
+            power_in_pairs: false,
         }
     }
 }
@@ -295,17 +299,63 @@ impl Layout {
     }
 
     /// The regions of a beam's power laid side by side along x, a record per beam
-    /// (`beam_power_texel` in common.wgsl), where a row of records fits the device's widest
-    /// image; else 0, the regions in pairs.
+    /// (`beam_power_texel` in common.wgsl), where a row of records (with refraction, a row
+    /// of a tile's: `beam_rows`) fits the device's widest image; else 0, the regions in pairs.
     fn power_records(&self) -> u32 {
         let regions = self.power_regions();
-        let side = image_side(regions.saturating_mul(self.grid.width), self.max_image_side);
-        if side <= self.max_image_side {
+        let fits = if self.refraction {
+            self.beam_rows(regions).is_some()
+        } else {
+            image_side(regions.saturating_mul(self.grid.width), self.max_image_side) <= self.max_image_side
+        };
+        if !self.power_in_pairs && fits {
             regions
         } else {
             0
         }
     }
+
+    /// The exponent of the slots per row of the beams' images with `texels` texels per slot
+    /// (`beam_rows`), None where none fits.
+    fn beam_rows(&self, texels: u32) -> Option<u32> {
+        beam_rows(self.beam_slots(), self.tile, texels, self.max_image_side)
+    }
+
+    /// Slots in the beams' images: the light tiles' beams.
+    fn beam_slots(&self) -> u64 {
+        self.beam_groups as u64 * (self.tile * self.tile) as u64
+    }
+
+    /// The exponent of the beams' slots per image row (`beam_rows`) for the widest of their
+    /// images, `Params::sweep` w.
+    fn beam_row_shift(&self) -> u32 {
+        let least = (self.tile * self.tile).next_power_of_two().trailing_zeros();
+        self.beam_rows(self.power_records().max(2)).unwrap_or(least)
+    }
+
+    /// Width and height of an image of the beams with `texels` texels per slot: with
+    /// refraction in the beams' slots (`beam_row_shift`), else a row per row of the grid.
+    fn beam_image(&self, texels: u32) -> [u32; 2] {
+        if !self.refraction {
+            return [texels * self.grid.width, self.grid.height];
+        }
+        let shift = self.beam_row_shift();
+        [texels << shift, self.beam_slots().div_ceil(1 << shift) as u32]
+    }
+}
+
+/// Slots of beams per row of the beams' images, as a power of two's exponent (`beam_slot` in
+/// common.wgsl: the `tile` × `tile` beams of a light tile one after another, the tiles in
+/// order, `slots` in all): the widest row of `texels` texels per slot (the power's records,
+/// or 2 for the halves side by side) that an image of sides up to `max` takes, rows
+/// included, from a tile's beams to all of them; None where none fits.
+fn beam_rows(slots: u64, tile: u32, texels: u32, max: u32) -> Option<u32> {
+    let fits = |n: u64| n <= max as u64 && image_side(n as u32, max) <= max;
+    let least = (tile * tile).next_power_of_two().trailing_zeros();
+    let most = slots.next_power_of_two().trailing_zeros().max(least);
+    (least..=most)
+        .rev()
+        .find(|&shift| fits((texels as u64) << shift) && fits(slots.div_ceil(1 << shift)))
 }
 
 /// The planes in one voxel at `sample_distance` (voxels per plane), at most 8: how far back
@@ -493,7 +543,12 @@ fn make_params(
                 | u32::from(layout.skip_empty_view_tiles) << 2,
         ],
         light_box,
-        sweep: [layout.front_planes(), layout.power_records(), layout.deposit_slots, 0],
+        sweep: [
+            layout.front_planes(),
+            layout.power_records(),
+            layout.deposit_slots,
+            layout.beam_row_shift(),
+        ],
         deposits: [
             layout.deposits.row_words as u32,
             layout.deposits.layer_words as u32,
@@ -597,28 +652,29 @@ impl State {
             )?,
         };
         // The per-plane state that the shaders read inside branches: images, layers as
-        // `shaders/common.wgsl` describes them. A beam's texels of the two halves of a pair lie
+        // `shaders/common.wgsl` describes them. The beams lie in slots, a light tile's one
+        // after another (`Layout::beam_row_shift`), a beam's texels of the two halves of a pair
         // side by side along x (`beam_pair_texel`). The beams' records: v.z, data value, shadow
         // depth and plane in the two halves, and with refraction position and v.xy. Their power
         // by region (the two halves, and each beam's power on the planes before: the view reads
         // the unrefracted beams', refracted ones deposit theirs a voxel back), f16 rgb in one
-        // layer or f32 in two: a record of a beam's regions side by side, or where a row of
-        // records is too wide, two regions to a layer (`Layout::power_records`). The spread
+        // layer or f32 in two: a record of a beam's regions side by side, or where a row of a
+        // tile's records is too wide, two regions to a layer (`Layout::power_records`). The spread
         // mode's five texels per beam and half. The view rays' aux and (with refraction)
         // position and direction; their colour, light and (with the medium) its transmittance,
         // f16 in one layer each or f32 in two.
         let regions = layout.power_regions();
         let records = layout.power_records();
         let words = if precision == Precision::F32 { 2 } else { 1 };
-        let grid = [layout.grid.width, layout.grid.height];
-        // A beam's texels of the two halves of a pair side by side (`beam_pair_texel`).
-        let pairs = [2 * grid[0], grid[1]];
+        // A beam's texels of the two halves of a pair side by side (`beam_pair_texel`), at its
+        // slot (`beam_slot`).
+        let pairs = layout.beam_image(2);
         let pixels_2d = [view.width, view.height];
         let (rgba32f, rg32u) = (vk::Format::R32G32B32A32_SFLOAT, vk::Format::R32G32_UINT);
         let image_specs: [(&str, vk::Format, [u32; 2], u32, bool); 5] = [
             ("beam_state", rgba32f, pairs, if refraction { 2 } else { 1 }, beams),
             if records > 0 {
-                ("beam_power", rg32u, [records * grid[0], grid[1]], words, beams)
+                ("beam_power", rg32u, layout.beam_image(records), words, beams)
             } else {
                 ("beam_power", rg32u, pairs, regions.div_ceil(2) * words, beams)
             },
@@ -838,8 +894,8 @@ pub(super) fn run(
     };
     let tile = spec.tile;
     let mut layout = Layout::new(&view, grid, light_channels(&features, req.debug_view), tile);
-    // A side of 0 admits no record of the beams' power: pairs (`Layout::power_records`).
-    layout.max_image_side = if req.power_in_pairs { 0 } else { max_2d };
+    layout.max_image_side = max_2d;
+    layout.power_in_pairs = req.power_in_pairs;
     layout.back_planes = spec.back_planes;
     let windows = light_windows(&view, &grid, light, features.refraction, tile);
     layout.light_lists = spec.light_lists;
@@ -1351,6 +1407,35 @@ mod tests {
             let pyramid = super::pyramid_texels(w, h, levels);
             assert!(aw as u64 * ah as u64 >= pyramid);
         }
+    }
+
+    #[test]
+    fn the_beams_rows_hold_every_slot_within_the_devices_sides() {
+        let max = 16384;
+        for (slots, tile, texels) in [
+            (16u64, 4u32, 2u32),
+            (97 * 85 * 16, 4, 2),
+            (97 * 85 * 16, 4, 11),
+            (137 * 120 * 64, 8, 18),
+            (512 * 512 * 16, 4, 2),
+        ] {
+            let shift = super::beam_rows(slots, tile, texels, max).expect("a layout fits");
+            let (width, rows) = ((texels as u64) << shift, slots.div_ceil(1 << shift));
+            // Every slot has a texel, a row holds a whole tile, and both sides fit the device
+            // once they are kept off powers of two.
+            assert!(rows << shift >= slots && 1u64 << shift >= (tile * tile) as u64);
+            assert!(super::image_side(width as u32, max) <= max && super::image_side(rows as u32, max) <= max);
+            // The widest such row: one twice as wide would not fit, or hold more than all.
+            let wider = (texels as u64) << (shift + 1);
+            assert!(
+                super::image_side(wider as u32, max) > max || 1u64 << shift >= slots,
+                "{slots} {tile} {texels}"
+            );
+        }
+        // A row of one tile's records wider than the device allows: no layout (pairs instead).
+        assert_eq!(super::beam_rows(1 << 20, 8, 300, 16384), None);
+        // Too many slots for any row and column of the device's sides.
+        assert_eq!(super::beam_rows(1 << 30, 4, 2, 16384), None);
     }
 
     #[test]
