@@ -346,16 +346,18 @@ impl Layout {
 
 /// Slots of beams per row of the beams' images, as a power of two's exponent (`beam_slot` in
 /// common.wgsl: the `tile` × `tile` beams of a light tile one after another, the tiles in
-/// order, `slots` in all): the widest row of `texels` texels per slot (the power's records,
-/// or 2 for the halves side by side) that an image of sides up to `max` takes, rows
-/// included, from a tile's beams to all of them; None where none fits.
+/// order, `slots` in all), with `texels` texels per slot (the power's records, or 2 for the
+/// halves side by side): of the rows from a tile's beams to all of them whose image has sides
+/// up to `max`, the one nearest the square root of the slots, so that the last row's unused
+/// slots are few against all of them; None where none fits.
 fn beam_rows(slots: u64, tile: u32, texels: u32, max: u32) -> Option<u32> {
     let fits = |n: u64| n <= max as u64 && image_side(n as u32, max) <= max;
     let least = (tile * tile).next_power_of_two().trailing_zeros();
     let most = slots.next_power_of_two().trailing_zeros().max(least);
+    let square = most.div_ceil(2);
     (least..=most)
-        .rev()
-        .find(|&shift| fits((texels as u64) << shift) && fits(slots.div_ceil(1 << shift)))
+        .filter(|&shift| fits((texels as u64) << shift) && fits(slots.div_ceil(1 << shift)))
+        .min_by_key(|&shift| shift.abs_diff(square))
 }
 
 /// The planes in one voxel at `sample_distance` (voxels per plane), at most 8: how far back
@@ -1418,17 +1420,23 @@ mod tests {
             (97 * 85 * 16, 4, 11),
             (137 * 120 * 64, 8, 18),
             (512 * 512 * 16, 4, 2),
+            (400 * 400 * 16, 4, 18),
         ] {
             let shift = super::beam_rows(slots, tile, texels, max).expect("a layout fits");
-            let (width, rows) = ((texels as u64) << shift, slots.div_ceil(1 << shift));
+            let (row, rows) = (1u64 << shift, slots.div_ceil(1 << shift));
             // Every slot has a texel, a row holds a whole tile, and both sides fit the device
             // once they are kept off powers of two.
-            assert!(rows << shift >= slots && 1u64 << shift >= (tile * tile) as u64);
-            assert!(super::image_side(width as u32, max) <= max && super::image_side(rows as u32, max) <= max);
-            // The widest such row: one twice as wide would not fit, or hold more than all.
-            let wider = (texels as u64) << (shift + 1);
+            assert!(rows * row >= slots && row >= (tile * tile) as u64);
+            let width = (texels as u64 * row) as u32;
+            assert!(super::image_side(width, max) <= max && super::image_side(rows as u32, max) <= max);
+            // Unused slots only in the last row, which is short against all of them: at most
+            // twice the square root, unless the device's sides ask for longer rows.
+            let unused = rows * row - slots;
+            assert!(unused < row, "{slots} {tile} {texels}");
+            let shorter_fits =
+                super::image_side(slots.div_ceil(row / 2) as u32, max) <= max && slots.div_ceil(row / 2) <= max as u64;
             assert!(
-                super::image_side(wider as u32, max) > max || 1u64 << shift >= slots,
+                row * row <= 4 * slots || row == (tile * tile) as u64 || !shorter_fits,
                 "{slots} {tile} {texels}"
             );
         }
