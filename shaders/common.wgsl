@@ -174,22 +174,23 @@ const VIEW_COLOR: u32 = 0u;
 const VIEW_LIGHT: u32 = 1u;
 const VIEW_MEDIUM: u32 = 2u;
 
-// Forward beams: two texels per beam of the beam_grid.x × beam_grid.y grid (at its slot,
-// `beam_slot`), one per half (plane parity), side by side (`beam_pair_texel`): layer 0 holds v.z, the data value, the
-// shadow depth and the plane stored on (`BEAM_AUX`), layer 1 with refraction x, y on the
-// plane and v.x, v.y (`BEAM_POS`). An image, not a buffer: a CPU driver fetches texels for
-// all invocations at once, while it loads a storage buffer inside a branch invocation by
-// invocation and component by component (the neighbours' records are read inside one).
+// Forward beams: two texels per beam of the beam_grid.x × beam_grid.y grid at its slot
+// (`beam_slot`), one per half (plane parity), side by side (`beam_pair_texel`): layer 0
+// holds v.z, the data value, the shadow depth and the plane stored on (`BEAM_AUX`), layer 1
+// with refraction x, y on the plane and v.x, v.y (`BEAM_POS`). An image, not a buffer: a CPU
+// driver fetches texels for all invocations at once, while it loads a storage buffer inside
+// a branch invocation by invocation and component by component (the neighbours' records
+// are read inside one).
 @group(0) @binding(14) var beam_state: texture_storage_2d_array<rgba32float, read_write>;
 // Beam ij's slot in the beams' images (x: the slot in its row, y: the row). With refraction
-// the TILE × TILE beams of a light tile one after another, row by row, and the tiles in
-// order, row by row over the grid, 2^P.sweep.w slots to an image row
-// (`Layout::beam_row_shift` in state.rs): a workgroup steps a tile, so its loads and stores
-// run through whole cache lines, one after another from tile to tile. With the grid's rows
-// as the image's, a tile's beams lie in TILE rows a row pitch apart, and on a CPU driver the
-// refracted light pass took 8–12 % longer. Without refraction the grid's rows are the
-// image's: there the light pass is no faster in tile order, while the view's bilinear reads
-// of the power, four slots a sample, cost 2.6 % more instructions.
+// the TILE × TILE beams of a light tile one after another, row by row, and the tiles in order,
+// row by row over the grid, 2^P.sweep.w slots to an image row (`Layout::beam_row_shift` in
+// state.rs): a workgroup steps a tile, so its loads and stores run through whole cache lines,
+// one after another from tile to tile. With the grid's rows as the image's, a tile's beams lie
+// in TILE rows a row pitch apart, and on a CPU driver the refracted light pass took 1–11 %
+// longer (pairs of renders of the CT head at 256² and 512²). Without refraction the grid's
+// rows are the image's: there the light pass is no faster in tile order, while the view's
+// bilinear reads of the power, four slots a sample, cost 2.6 % more instructions.
 fn beam_slot(ij: vec2<u32>) -> vec2<u32> {
     if (!REFRACTION) {
         return ij;
