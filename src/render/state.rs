@@ -329,8 +329,8 @@ impl Layout {
     /// The exponent of the beams' slots per image row (`beam_rows`) for the widest of their
     /// images, `Params::sweep` w.
     fn beam_row_shift(&self) -> u32 {
-        let least = (self.tile * self.tile).next_power_of_two().trailing_zeros();
-        self.beam_rows(self.power_records().max(2)).unwrap_or(least)
+        self.beam_rows(self.power_records().max(2))
+            .unwrap_or_else(|| tile_row_shift(self.tile))
     }
 
     /// Width and height of an image of the beams with `texels` texels per slot: with
@@ -352,12 +352,18 @@ impl Layout {
 /// slots are few against all of them; None where none fits.
 fn beam_rows(slots: u64, tile: u32, texels: u32, max: u32) -> Option<u32> {
     let fits = |n: u64| n <= max as u64 && image_side(n as u32, max) <= max;
-    let least = (tile * tile).next_power_of_two().trailing_zeros();
+    let least = tile_row_shift(tile);
     let most = slots.next_power_of_two().trailing_zeros().max(least);
     let square = most.div_ceil(2);
     (least..=most)
         .filter(|&shift| fits((texels as u64) << shift) && fits(slots.div_ceil(1 << shift)))
         .min_by_key(|&shift| shift.abs_diff(square))
+}
+
+/// The exponent of the shortest row of the beams' slots: one that holds a `tile` × `tile`
+/// light tile's beams.
+fn tile_row_shift(tile: u32) -> u32 {
+    (tile * tile).next_power_of_two().trailing_zeros()
 }
 
 /// The planes in one voxel at `sample_distance` (voxels per plane), at most 8: how far back
@@ -662,9 +668,9 @@ impl State {
         // the unrefracted beams', refracted ones deposit theirs a voxel back), f16 rgb in one
         // layer or f32 in two: a record of a beam's regions side by side, or where a row of
         // records (with refraction, of a tile's) is too wide, two regions to a layer
-        // (`Layout::power_records`). The spread mode's five texels per beam and half. The view rays' aux and (with refraction)
-        // position and direction; their colour, light and (with the medium) its transmittance,
-        // f16 in one layer each or f32 in two.
+        // (`Layout::power_records`). The spread mode's five texels per beam and half. The view
+        // rays' aux and (with refraction) position and direction; their colour, light and
+        // (with the medium) its transmittance, f16 in one layer each or f32 in two.
         let regions = layout.power_regions();
         let records = layout.power_records();
         let words = if precision == Precision::F32 { 2 } else { 1 };
