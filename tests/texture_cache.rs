@@ -171,3 +171,37 @@ fn transfer_edits_at_volume_level(level: u32) {
     }
     gpu.assert_clean();
 }
+
+#[test]
+fn a_turn_keeps_the_layout_where_asked_and_lays_the_textures_out_anew_otherwise() {
+    // Looking along x a render lays the textures out across the view; a render asking to keep
+    // the layout (the viewer's first levels) reuses them when turned back to the front, with
+    // no upload but its tables, and gives the image a fresh renderer gives in that layout; a
+    // render laying them out for its view makes them anew in the stored layout.
+    use caustica::render::VolumeLayout;
+    let mut gpu = Gpu::new();
+    let mut p = prepared();
+    p.scene.camera.yaw_deg = 90.0;
+    let side = gpu.render(&p, &RenderRequest::new(48, 40));
+    assert_eq!(side.stats.volume_axes, Some([2, 1, 0]));
+    p.scene.camera.yaw_deg = 0.0;
+    let mut kept = RenderRequest::new(48, 40);
+    kept.volume_layout = VolumeLayout::Kept;
+    let front = gpu.render(&p, &kept);
+    assert_eq!(front.stats.volume_axes, Some([2, 1, 0]), "the layout was kept");
+    assert_eq!(front.stats.upload_bytes, 0, "nothing made anew");
+    let mut fresh_kept = Gpu::new();
+    p.scene.camera.yaw_deg = 90.0;
+    fresh_kept.render(&p, &RenderRequest::new(48, 40));
+    p.scene.camera.yaw_deg = 0.0;
+    assert_eq!(front.image.pixels, fresh_kept.render(&p, &kept).image.pixels);
+    let anew = gpu.render(&p, &RenderRequest::new(48, 40));
+    assert_eq!(anew.stats.volume_axes, None);
+    assert!(
+        anew.stats.upload_bytes > side.stats.upload_bytes / 2,
+        "made anew: {} bytes",
+        anew.stats.upload_bytes
+    );
+    assert_eq!(anew.image.pixels, fresh(&p));
+    gpu.assert_clean();
+}

@@ -13,6 +13,7 @@ use std::time::Instant;
 
 use crate::render::{
     jitter_sequence, EnvMap, PreparedScene, RenderError, RenderRequest, RenderStats, RenderedImage, Renderer,
+    VolumeLayout,
 };
 use crate::scene::{Scene, VolumeSource};
 use crate::{Classify, ExitClass};
@@ -45,7 +46,7 @@ pub enum Reply {
     Frame {
         job: Job,
         image: RenderedImage,
-        stats: RenderStats,
+        stats: Box<RenderStats>,
         duration_ms: f64,
     },
     Cancelled {
@@ -214,6 +215,7 @@ fn handle(
                 return;
             }
             let start = Instant::now();
+            let half_resolution = scene.quality.volume_level > 0;
             let result = set_scene(renderer, prepared, allow_downsample, *scene, send).and_then(|()| {
                 let mut req = RenderRequest::new(width, height);
                 req.cancel = Some(cancel);
@@ -221,6 +223,13 @@ fn handle(
                 // The coarse levels read the volumes' half-resolution level: made with the
                 // first frame, so no level uploads the volumes again.
                 req.keep_coarse_volume = true;
+                // The levels that sample the half-resolution volume keep the textures' layout
+                // (a turn would make them anew whenever it brings another axis nearest the
+                // view); those at full resolution lay them out for their view, which pays back
+                // its making within the frame (`VolumeLayout`).
+                if half_resolution {
+                    req.volume_layout = VolumeLayout::Kept;
+                }
                 // Accumulation passes move the planes and the light grid (pass 0 does not).
                 req.jitter = jitter_sequence(job.pass, ACCUMULATE);
                 renderer.render(prepared, &req)
@@ -229,7 +238,7 @@ fn handle(
                 Ok(out) => Reply::Frame {
                     job,
                     image: out.image,
-                    stats: out.stats,
+                    stats: Box::new(out.stats),
                     duration_ms: start.elapsed().as_secs_f64() * 1e3,
                 },
                 Err(RenderError::Cancelled) => Reply::Cancelled { job },

@@ -149,6 +149,10 @@ pub fn render(args: &RenderArgs) -> Result<()> {
                 "GPU ms by pass: light {light:.1}, view {view:.1}, listing and clearing {listing:.1}, finish {finish:.1}"
             );
         }
+        if let Some(axes) = s.volume_axes {
+            let [f, m, l] = axes.map(|a| ["x", "y", "z"][a as usize]);
+            println!("volume textures laid out {f}, {m}, {l} (fastest first; stored x, y, z): the view looks along x");
+        }
         if let Some(steps) = s.light_steps {
             let t = s.tile;
             println!("light tile steps: {steps} (tiles of {t}×{t} beams stepped, over all planes)");

@@ -486,11 +486,13 @@ fn make_params(
         crate::scene::Environment::Color { .. } => 1.0,
     };
     let rotation = Mat4::from_mat3(glam::Mat3::from_mat4(view.world_from_view));
+    // The voxels along the textures' axes.
+    let dims = view.in_memory_order(vol.dims);
     let g = &layout.grid;
     let r = view.rect;
     Params {
         volume_from_view: cols(view.volume_from_view()),
-        gradient_to_view: cols(view.gradient_to_view(vol.spacing)),
+        gradient_to_view: cols(view.gradient_to_view(view.in_memory_order(vol.spacing))),
         world_from_view: cols(rotation),
         clip_plane: clip,
         projection: view.projection,
@@ -520,9 +522,9 @@ fn make_params(
             1.0 / view.height as f32,
         ],
         texel: [
-            1.0 / vol.dims[0] as f32,
-            1.0 / vol.dims[1] as f32,
-            1.0 / vol.dims[2] as f32,
+            1.0 / dims[0] as f32,
+            1.0 / dims[1] as f32,
+            1.0 / dims[2] as f32,
             super::gradient::ambient_eta(&prepared.tf.eta),
         ],
         background: background(&scene.environment),
@@ -754,6 +756,10 @@ fn view_and_grid(
         // meet the volume (refracted beams deposit only within the rect).
         view.rect = crate::scene::view::PixelRect::frame(req.width, req.height);
     }
+    if req.volume_layout != super::VolumeLayout::Stored && !features.lbm {
+        // The lattice-Boltzmann mode's grid follows the volume's axes as stored.
+        view.memory_axes = view.memory_axes_for_view();
+    }
     let light = light_direction(&scene.light);
     let deposits = features.transport == LightTransport::Beams && features.refraction;
     // Beams that carry only the unscattered light: at most one per voxel where they keep
@@ -893,7 +899,7 @@ pub(super) fn run(
                 .into(),
         ));
     }
-    let (view, grid, light) = plan.geometry?;
+    let (mut view, grid, light) = plan.geometry?;
     let diagnoses_light = diagnoses_light(req);
     let planes_run = if req.debug_view == DebugView::Image || req.debug_view == DebugView::Medium {
         view.planes
@@ -951,7 +957,13 @@ pub(super) fn run(
     // Scene textures are kept between renders while what they hold is unchanged (an
     // interactive view changes mostly the camera and light).
     let coarse = scene.quality.volume_level > 0;
-    let key = TexturesKey::new(prepared, &features, coarse || req.keep_coarse_volume);
+    let mut key = TexturesKey::new(prepared, &features, coarse || req.keep_coarse_volume, view.memory_axes);
+    if req.volume_layout == super::VolumeLayout::Kept {
+        if let Some(axes) = cache.as_ref().and_then(|c| c.serves_but_layout(&key)) {
+            view.memory_axes = axes;
+            key = key.with_axes(axes);
+        }
+    }
     let mut pending = None;
     match cache.as_mut() {
         Some(c) if c.matches(&key) => {}
@@ -966,13 +978,25 @@ pub(super) fn run(
         }
         _ => {
             *cache = None; // free the old textures before allocating new ones
-            let eta_source = match (&prepared.eta_volume, features.eta_volume) {
-                (Some(v), true) => Some((v.as_ref(), v.value_range)),
+
+            // The textures lay the volumes out as suits the view (`ViewSetup::memory_axes`).
+            let axes = view.memory_axes;
+            fn in_layout(v: &crate::volume::Volume, axes: [usize; 3]) -> std::borrow::Cow<'_, crate::volume::Volume> {
+                if axes == [0, 1, 2] {
+                    std::borrow::Cow::Borrowed(v)
+                } else {
+                    std::borrow::Cow::Owned(v.with_axes(axes))
+                }
+            }
+            let laid_out = in_layout(vol, axes);
+            let eta_laid_out = match (&prepared.eta_volume, features.eta_volume) {
+                (Some(v), true) => Some(in_layout(v.as_ref(), axes)),
                 _ => None,
             };
+            let eta_source = eta_laid_out.as_deref().map(|v| (v, v.value_range));
             let (textures, upload) = SceneTextures::upload(
                 ctx,
-                vol,
+                &laid_out,
                 window,
                 !features.sampled_layers,
                 features.refraction.then_some((eta_source, features.gradient)),
@@ -1365,6 +1389,7 @@ pub(super) fn run(
                     precision,
                     reductions: Vec::new(),
                     lbm: lbm_light.as_ref().map(|l| Box::new(l.stats.clone())),
+                    volume_axes: (view.memory_axes != [0, 1, 2]).then_some(view.memory_axes.map(|a| a as u8)),
                     // Memory figures are filled in by `Renderer::render`.
                     ..RenderStats::default()
                 },

@@ -618,11 +618,13 @@ pub struct TexturesKey {
     environment: crate::scene::Environment,
     /// The volumes have (or are asked for) their half-resolution level.
     coarse: bool,
+    /// The volume's axes as the textures lay them out (`ViewSetup::memory_axes`).
+    axes: [usize; 3],
 }
 
 impl TexturesKey {
     /// What `prepared` needs; `coarse`: with the volumes' half-resolution level.
-    pub fn new(prepared: &super::PreparedScene, features: &super::Features, coarse: bool) -> Self {
+    pub fn new(prepared: &super::PreparedScene, features: &super::Features, coarse: bool, axes: [usize; 3]) -> Self {
         TexturesKey {
             volume: prepared.volume.clone(),
             eta_volume: prepared.eta_volume.clone().filter(|_| features.eta_volume),
@@ -633,7 +635,13 @@ impl TexturesKey {
             sample_distance: prepared.scene.quality.sample_distance,
             environment: prepared.scene.environment.clone(),
             coarse,
+            axes,
         }
+    }
+
+    /// The same with the textures laying the volume's axes out as `axes`.
+    pub fn with_axes(self, axes: [usize; 3]) -> Self {
+        TexturesKey { axes, ..self }
     }
 
     /// Whether the volumes are asked for their half-resolution level.
@@ -654,6 +662,11 @@ impl TexturesKey {
     /// from η, and the sample distance: what [`SceneTextures::replace_transfer`] brings up to
     /// date. Textures with the half-resolution level serve a key without it.
     fn same_but_transfer(&self, other: &TexturesKey) -> bool {
+        self.axes == other.axes && self.same_but_transfer_and_layout(other)
+    }
+
+    /// [`TexturesKey::same_but_transfer`] whatever the layout of the volume's axes.
+    fn same_but_transfer_and_layout(&self, other: &TexturesKey) -> bool {
         let eta_same = match (&self.eta_volume, &other.eta_volume) {
             (Some(a), Some(b)) => Arc::ptr_eq(a, b),
             (None, None) => true,
@@ -694,6 +707,13 @@ impl CachedTextures {
             uploaded: Cell::new(false),
             grown: RefCell::new(None),
         }
+    }
+
+    /// The layout of the kept textures where, laid out so, they would serve `key` but for
+    /// their tables or transfer functions (`VolumeLayout::Kept`).
+    pub fn serves_but_layout(&self, key: &TexturesKey) -> Option<[usize; 3]> {
+        let axes = self.key.axes;
+        (self.uploaded.get() && self.key.same_but_transfer_and_layout(key)).then_some(axes)
     }
 
     pub fn matches(&self, key: &TexturesKey) -> bool {

@@ -80,6 +80,27 @@ impl Volume {
         })
     }
 
+    /// The same voxels with axis `axes[i]` as axis i (x still fastest): `axes` a permutation
+    /// of [0, 1, 2].
+    pub fn with_axes(&self, axes: [usize; 3]) -> Volume {
+        let dims = axes.map(|a| self.dims[a]);
+        let strides = [1, self.dims[0], self.dims[0] * self.dims[1]];
+        let step = axes.map(|a| strides[a]);
+        let mut data = Vec::with_capacity(self.data.len());
+        for k in 0..dims[2] {
+            for j in 0..dims[1] {
+                let row = k * step[2] + j * step[1];
+                data.extend((0..dims[0]).map(|i| self.data[row + i * step[0]]));
+            }
+        }
+        Volume {
+            dims,
+            spacing: axes.map(|a| self.spacing[a]),
+            data,
+            value_range: self.value_range,
+        }
+    }
+
     pub fn voxel_count(&self) -> usize {
         self.data.len()
     }
@@ -357,6 +378,31 @@ impl crate::Classify for VolumeError {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn axes_reordered_keep_every_voxel() {
+        let dims = [5, 4, 3];
+        let data: Vec<f32> = (0..60).map(|i| i as f32).collect();
+        let v = Volume::new(dims, [1.0, 2.0, 3.0], data).unwrap();
+        for axes in [[0, 1, 2], [2, 1, 0], [1, 2, 0], [2, 0, 1]] {
+            let w = v.with_axes(axes);
+            assert_eq!(w.dims, axes.map(|a| dims[a]));
+            assert_eq!(w.spacing, axes.map(|a| v.spacing[a]));
+            for z in 0..w.dims[2] {
+                for y in 0..w.dims[1] {
+                    for x in 0..w.dims[0] {
+                        // Voxel (x, y, z) of the new layout is the one whose axis axes[i] is at
+                        // the i-th of them.
+                        let mut at = [0; 3];
+                        for (i, c) in [x, y, z].into_iter().enumerate() {
+                            at[axes[i]] = c;
+                        }
+                        assert_eq!(w.get(x, y, z), v.get(at[0], at[1], at[2]), "{axes:?}");
+                    }
+                }
+            }
+        }
+    }
     use super::*;
 
     #[test]
