@@ -224,9 +224,10 @@ fn handle(
                 // first frame, so no level uploads the volumes again.
                 req.keep_coarse_volume = true;
                 // The levels that sample the half-resolution volume keep the textures' layout
-                // (a turn would make them anew whenever it brings another axis nearest the
-                // view); those at full resolution lay them out for their view, which pays back
-                // its making within the frame (`VolumeLayout`).
+                // (a turn would make them anew whenever it brings another layout's axis nearest
+                // the view); those at full resolution lay them out for their view, made anew
+                // once after such a turn (0.8 s for the CT head, which the full frame and its
+                // accumulation passes gain back: `VolumeLayout`).
                 if half_resolution {
                     req.volume_layout = VolumeLayout::Kept;
                 }

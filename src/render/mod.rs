@@ -149,10 +149,10 @@ pub struct RenderRequest {
 /// How a render's volume textures lay out the volume's axes in memory.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum VolumeLayout {
-    /// The axis nearest the viewing direction slowest (`ViewSetup::memory_axes_for_view`),
-    /// so that each plane's samples lie near each other in memory: a CPU driver samples them
-    /// faster (the CT head's full-effects frame looking along its fastest axis: the light pass
-    /// about an eighth shorter, the view a twentieth).
+    /// As suits the view (`ViewSetup::memory_axes_for_view`): looking along the volume's x
+    /// axis, its fastest in memory, x slowest, so that each plane's samples lie near each
+    /// other in memory (the CT head's scene seen from its side: the light pass 10–15 %
+    /// shorter, the view 7–9 %); else as stored.
     #[default]
     ForView,
     /// As the textures kept from the render before lay it out, where they serve this render

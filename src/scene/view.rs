@@ -147,8 +147,8 @@ pub struct ViewSetup {
     pub world_from_view: Mat4,
     pub tex_from_world: Mat4,
     /// How the volume's textures lay out its axes: axis `memory_axes[i]` of the volume (and
-    /// of the world) is the textures' axis i, x fastest in memory ([`ViewSetup::memory_axes_for_view`]).
-    /// [0, 1, 2] for the volume as stored.
+    /// of the world) is the textures' axis i, the first fastest in memory
+    /// ([`ViewSetup::memory_axes_for_view`]); [0, 1, 2] for the volume as stored.
     pub memory_axes: [usize; 3],
     /// Physical size of the volume (dims × spacing).
     pub extent: Vec3,
@@ -440,8 +440,8 @@ impl ViewSetup {
     /// The layout of the volume's textures that suits this view: as stored, unless the view
     /// looks along the stored fastest axis (x). Then each plane cuts across that axis and its
     /// samples use one texel of every cache line the volume fills, so that every plane reads
-    /// the whole volume from memory again (the CT head viewed from its side: the full-effects
-    /// light pass about a fifth slower than from the front or above). Then x goes slowest and
+    /// the whole volume from memory again (the CT head seen from its side: the full-effects
+    /// light pass a fifth longer than with x slowest). So x goes slowest, and
     /// the axis nearest the image's rows fastest, so that the pixels side by side in a row (a
     /// CPU driver's SIMD lanes) sample texels side by side. Looking along y or z a plane's
     /// texels already lie along whole cache lines: as stored, the same speed was measured as
