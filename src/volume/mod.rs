@@ -83,20 +83,10 @@ impl Volume {
     /// The same voxels with axis `axes[i]` as axis i (x still fastest): `axes` a permutation
     /// of [0, 1, 2].
     pub fn with_axes(&self, axes: [usize; 3]) -> Volume {
-        let dims = axes.map(|a| self.dims[a]);
-        let strides = [1, self.dims[0], self.dims[0] * self.dims[1]];
-        let step = axes.map(|a| strides[a]);
-        let mut data = Vec::with_capacity(self.data.len());
-        for k in 0..dims[2] {
-            for j in 0..dims[1] {
-                let row = k * step[2] + j * step[1];
-                data.extend((0..dims[0]).map(|i| self.data[row + i * step[0]]));
-            }
-        }
         Volume {
-            dims,
+            dims: axes.map(|a| self.dims[a]),
             spacing: axes.map(|a| self.spacing[a]),
-            data,
+            data: orient::permute(self, axes, [false; 3]),
             value_range: self.value_range,
         }
     }

@@ -222,9 +222,9 @@ impl Loaded {
     }
 }
 
-/// The samples of `v` with display axis j taken from voxel axis `order[j]`, reversed where
-/// `flip[j]`.
-fn permute(v: &Volume, order: [usize; 3], flip: [bool; 3]) -> Vec<f32> {
+/// The samples of `v` with axis j (of the display, or of the textures: `Volume::with_axes`)
+/// taken from voxel axis `order[j]`, reversed where `flip[j]`.
+pub(super) fn permute(v: &Volume, order: [usize; 3], flip: [bool; 3]) -> Vec<f32> {
     let strides = [1, v.dims[0], v.dims[0] * v.dims[1]];
     let dims = order.map(|a| v.dims[a]);
     let mut start = 0isize;
