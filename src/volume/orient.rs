@@ -224,6 +224,12 @@ impl Loaded {
 
 /// The samples of `v` with axis j (of the display, or of the textures: `Volume::with_axes`)
 /// taken from voxel axis `order[j]`, reversed where `flip[j]`.
+///
+/// Copied in blocks of `PERMUTE_BLOCK`³ voxels where the output's rows run along a source axis
+/// other than x: a whole row read in one go takes one sample from each of as many cache lines,
+/// and pages, a row or a slab apart; a block reads whole lines and writes whole rows. For
+/// 256×256×108 f32 voxels (the CT head's grid) reordered to z, y, x: 69–80 ms row by row,
+/// 20–29 ms in blocks.
 pub(super) fn permute(v: &Volume, order: [usize; 3], flip: [bool; 3]) -> Vec<f32> {
     let strides = [1, v.dims[0], v.dims[0] * v.dims[1]];
     let dims = order.map(|a| v.dims[a]);
@@ -238,15 +244,42 @@ pub(super) fn permute(v: &Volume, order: [usize; 3], flip: [bool; 3]) -> Vec<f32
             step[j] = s;
         }
     }
-    let mut out = Vec::with_capacity(v.data.len());
-    for z in 0..dims[2] as isize {
-        for y in 0..dims[1] as isize {
-            let row = start + y * step[1] + z * step[2];
-            out.extend((0..dims[0] as isize).map(|x| v.data[(row + x * step[0]) as usize]));
+    if order[0] == 0 {
+        // The output's rows are the source's (reversed or not): row by row.
+        let mut out = Vec::with_capacity(v.data.len());
+        for z in 0..dims[2] as isize {
+            for y in 0..dims[1] as isize {
+                let row = start + y * step[1] + z * step[2];
+                out.extend((0..dims[0] as isize).map(|x| v.data[(row + x * step[0]) as usize]));
+            }
+        }
+        return out;
+    }
+    let mut out = vec![0.0; v.data.len()];
+    let b = PERMUTE_BLOCK;
+    let (nx, ny) = (dims[0], dims[1]);
+    for z0 in (0..dims[2]).step_by(b) {
+        for y0 in (0..dims[1]).step_by(b) {
+            for x0 in (0..dims[0]).step_by(b) {
+                for z in z0..(z0 + b).min(dims[2]) {
+                    for y in y0..(y0 + b).min(dims[1]) {
+                        let src = start + y as isize * step[1] + z as isize * step[2];
+                        let dst = (z * ny + y) * nx;
+                        let x1 = (x0 + b).min(nx);
+                        for (x, o) in (x0..x1).zip(&mut out[dst + x0..dst + x1]) {
+                            *o = v.data[(src + x as isize * step[0]) as usize];
+                        }
+                    }
+                }
+            }
         }
     }
     out
 }
+
+/// The edge of `permute`'s blocks: 16 f32 fill a 64-byte cache line, and a block's 16² source
+/// lines (16 KiB) stay in the L1 cache while it is copied.
+const PERMUTE_BLOCK: usize = 16;
 
 #[cfg(test)]
 mod tests {
@@ -267,6 +300,31 @@ mod tests {
         (0..3).fold(f.origin, |p, a| {
             p + f.axes[a] * (i[a] as f64 * f64::from(l.volume.spacing[a]))
         })
+    }
+
+    #[test]
+    fn every_order_and_flip_takes_each_voxel_from_its_place() {
+        // Sides that leave partial blocks at both ends of `PERMUTE_BLOCK`'s multiples.
+        let dims = [2 * PERMUTE_BLOCK + 5, PERMUTE_BLOCK + 4, PERMUTE_BLOCK + 2];
+        let n = dims.iter().product();
+        let v = Volume::new(dims, [1.0; 3], (0..n).map(|i| i as f32).collect()).unwrap();
+        let orders = [[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]];
+        for order in orders {
+            for bits in 0..8 {
+                let flip = [bits & 1 != 0, bits & 2 != 0, bits & 4 != 0];
+                let out = permute(&v, order, flip);
+                let d = order.map(|a| dims[a]);
+                assert_eq!(out.len(), n);
+                for (i, &value) in out.iter().enumerate() {
+                    let c = [i % d[0], (i / d[0]) % d[1], i / (d[0] * d[1])];
+                    let mut at = [0; 3];
+                    for j in 0..3 {
+                        at[order[j]] = if flip[j] { d[j] - 1 - c[j] } else { c[j] };
+                    }
+                    assert_eq!(value, v.get(at[0], at[1], at[2]), "{order:?} {flip:?} at {c:?}");
+                }
+            }
+        }
     }
 
     #[test]
