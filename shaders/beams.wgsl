@@ -513,10 +513,16 @@ fn acc_levels() -> u32 {
     return ACC_LEVELS;
 }
 
-// Texels of level m (its side: the image's, halved m times, rounded up).
+// Level m holds the texels of 2^m × 2^m pixels that cover a pixel of the rect (nothing is
+// deposited or read beyond it), stored from the first of them (`level_first`): its size.
 fn level_size(m: u32) -> vec2<u32> {
-    let s = (vec2<u32>(u32(P.size.x), u32(P.size.y)) + vec2<u32>((1u << m) - 1u)) >> vec2<u32>(m);
-    return s;
+    return ((P.rect.zw - vec2<u32>(1u)) >> vec2<u32>(m)) - level_first(m) + vec2<u32>(1u);
+}
+
+// Level m's first texel that covers a pixel of the rect (texel q spans pixels q·2^m ..
+// (q + 1)·2^m), which is stored first.
+fn level_first(m: u32) -> vec2<u32> {
+    return P.rect.xy >> vec2<u32>(m);
 }
 
 // Offset of level m within a plane of the pyramid packed level after level, in texels. The
@@ -558,25 +564,27 @@ fn deposit_slot(k: u32) -> u32 {
 // is a layer of P.deposits.y words: the word of its first texel in a layer and the words
 // from one of its rows to the next. Packed level after level, or with `ACC_IMAGE` in the
 // atlas of the image `light_acc_tex` over the same words (rows of P.deposits.x words, layer
-// slot × channels + channel), whose texel `origin` is its first.
+// slot × channels + channel), whose texel `origin` is its first. Texels are addressed by their
+// place in the level (`level_first`: `first` lies at its start).
 struct AccLevel {
     start: u32,
     row: u32,
     origin: vec2<u32>,
+    first: vec2<u32>,
 }
 
 fn acc_level(m: u32) -> AccLevel {
     if (ACC_IMAGE) {
         let o = level_origin(m);
-        return AccLevel(o.y * P.deposits.x + o.x, P.deposits.x, o);
+        return AccLevel(o.y * P.deposits.x + o.x, P.deposits.x, o, level_first(m));
     }
-    return AccLevel(level_offset(m), level_size(m).x, vec2<u32>(0u));
+    return AccLevel(level_offset(m), level_size(m).x, vec2<u32>(0u), level_first(m));
 }
 
-// Index in `light_acc` of channel ch of texel q of level l of light slot `slot` (a channel's
-// words lie a layer after the one before's).
+// Index in `light_acc` of channel ch of texel q (one that covers a pixel of the rect) of level
+// l of light slot `slot` (a channel's words lie a layer after the one before's).
 fn acc_index(slot: u32, ch: u32, l: AccLevel, q: vec2<u32>) -> u32 {
-    return (slot * P.tiles.w + ch) * P.deposits.y + l.start + q.y * l.row + q.x;
+    return (slot * P.tiles.w + ch) * P.deposits.y + l.start + (q.y - l.first.y) * l.row + (q.x - l.first.x);
 }
 
 // Index of the first channel of texel q of level m of light slot `slot`.
@@ -584,7 +592,7 @@ fn acc_texel(slot: u32, m: u32, q: vec2<u32>) -> u32 {
     return acc_index(slot, 0u, acc_level(m), q);
 }
 
-// Whether texel q of level m covers any pixel of the rect (the only texels cleared and read).
+// Whether texel q of level m covers any pixel of the rect (the only texels a level holds).
 fn level_texel_in_rect(m: u32, q: vec2<i32>) -> bool {
     let s = i32(1u << m);
     let lo = q * s;
@@ -653,7 +661,7 @@ fn deposit(slot: u32, c: vec2<f32>, w_in: vec2<f32>, w_min: f32, amount: vec3<f3
     let a = amount / (s * s);
     // The level's first texel and row length, once for the four.
     let level = acc_level(m);
-    let base = acc_index(slot, 0u, level, vec2<u32>(0u));
+    let base = acc_index(slot, 0u, level, level.first);
     let row = level.row;
     for (var n = 0u; n < 4u; n++) {
         let o = vec2<u32>(n & 1u, n >> 1u);
@@ -664,7 +672,8 @@ fn deposit(slot: u32, c: vec2<f32>, w_in: vec2<f32>, w_min: f32, amount: vec3<f3
         if (weight > 0.0 && level_texel_in_rect(m, q)) {
             // Unbiased rounding: a deterministic dither per beam and texel.
             let h = hash(seed ^ (u32(q.x) * 73856093u) ^ (u32(q.y) * 19349663u));
-            add_light(base + u32(q.y) * row + u32(q.x), a, weight, direction, f32(h & 0xffffu) / 65536.0);
+            let local = vec2<u32>(q) - level.first;
+            add_light(base + local.y * row + local.x, a, weight, direction, f32(h & 0xffffu) / 65536.0);
         }
     }
 }
@@ -674,7 +683,7 @@ fn deposit(slot: u32, c: vec2<f32>, w_in: vec2<f32>, w_min: f32, amount: vec3<f3
 // load (which it makes invocation by invocation).
 fn acc_channel(slot: u32, ch: u32, l: AccLevel, q: vec2<u32>) -> u32 {
     if (ACC_IMAGE) {
-        return textureLoad(light_acc_tex, vec2<i32>(l.origin + q), i32(slot * P.tiles.w + ch)).x;
+        return textureLoad(light_acc_tex, vec2<i32>(l.origin + q - l.first), i32(slot * P.tiles.w + ch)).x;
     }
     return atomicLoad(&light_acc[acc_index(slot, ch, l, q)]);
 }
@@ -722,6 +731,7 @@ fn deposited_at(slot: u32, t: vec2<f32>) -> LightSample {
         let s = i32(1u << m);
         let first = vec2<i32>(P.rect.xy) / s;
         let last = (vec2<i32>(P.rect.zw) - vec2<i32>(1)) / s;
+        l.first = vec2<u32>(first);
         let tl = (t + vec2<f32>(0.5)) / f32(s) - vec2<f32>(0.5);
         let lo = floor(tl);
         let f = tl - lo;

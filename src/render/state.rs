@@ -27,7 +27,7 @@ use super::{
     RenderStats, RenderedImage,
 };
 use crate::scene::view::{
-    light_direction, BeamGrid, ViewSetup, VoxelCap, MAX_LIGHT_VALUE, MIN_LIGHT_DIR_Z, MIN_VIEW_DIR_Z,
+    light_direction, BeamGrid, PixelRect, ViewSetup, VoxelCap, MAX_LIGHT_VALUE, MIN_LIGHT_DIR_Z, MIN_VIEW_DIR_Z,
 };
 use crate::scene::{LightTransport, Precision};
 
@@ -209,11 +209,11 @@ struct DepositLayout {
 }
 
 impl DepositLayout {
-    /// The levels of a `w`×`h` image's pyramid of `levels` levels packed.
-    fn packed(w: u32, h: u32, levels: u32) -> Self {
+    /// The levels of the pyramid of `levels` levels over `rect` packed.
+    fn packed(rect: &PixelRect, levels: u32) -> Self {
         DepositLayout {
             row_words: 0,
-            layer_words: pyramid_texels(w, h, levels),
+            layer_words: pyramid_texels(rect, levels),
         }
     }
 
@@ -231,20 +231,39 @@ impl DepositLayout {
     }
 }
 
-/// Texels of one plane of the deposit pyramid of a `w`×`h` image with `levels` levels.
-fn pyramid_texels(w: u32, h: u32, levels: u32) -> u64 {
+/// Texels of level m of the deposit pyramid along one axis of the rect's pixels lo..hi: those
+/// whose 2^m pixels meet it (`level_size` in beams.wgsl; one for an empty rect). Nothing is
+/// deposited or read beyond the rect, where the volume's rays cannot reach.
+fn level_span(lo: u32, hi: u32, m: u32) -> u32 {
+    if hi <= lo {
+        return 1;
+    }
+    ((hi - 1) >> m) - (lo >> m) + 1
+}
+
+/// Width and height of level m of the deposit pyramid over `rect`.
+fn level_dims(rect: &PixelRect, m: u32) -> (u32, u32) {
+    (level_span(rect.x0, rect.x1, m), level_span(rect.y0, rect.y1, m))
+}
+
+/// Texels of one plane of the deposit pyramid of `levels` levels over `rect`.
+fn pyramid_texels(rect: &PixelRect, levels: u32) -> u64 {
     (0..levels)
-        .map(|m| w.div_ceil(1 << m) as u64 * h.div_ceil(1 << m) as u64)
+        .map(|m| {
+            let (w, h) = level_dims(rect, m);
+            w as u64 * h as u64
+        })
         .sum()
 }
 
-/// Width and height of the atlas of a `w`×`h` image's pyramid of `levels` levels (at least
-/// two): level 0 at its corner, the coarser levels stacked in a column to its right
-/// (`level_origin` in beams.wgsl). A seventh more texels than the pyramid (3/2 of level 0's
-/// against 21/16: the column's lower quarter is mostly empty).
-fn atlas_size(w: u32, h: u32, levels: u32) -> (u32, u32) {
-    let column: u32 = (1..levels).map(|m| h.div_ceil(1 << m)).sum();
-    (w + w.div_ceil(2), h.max(column))
+/// Width and height of the atlas of the pyramid of `levels` levels (at least two) over `rect`:
+/// level 0 at its corner, the coarser levels stacked in a column to its right, as wide as
+/// level 1 (`level_origin` in beams.wgsl). About a seventh more texels than the pyramid (3/2
+/// of level 0's against 21/16: the column's lower quarter is mostly empty).
+fn atlas_size(rect: &PixelRect, levels: u32) -> (u32, u32) {
+    let (w0, h0) = level_dims(rect, 0);
+    let column: u32 = (1..levels).map(|m| level_dims(rect, m).1).sum();
+    (w0 + level_dims(rect, 1).0, h0.max(column))
 }
 
 /// Largest number of layers the deposit ring's image can need: the most slots (a view pass's
@@ -258,7 +277,8 @@ pub(super) fn deposit_image(ctx: &Context, features: &Features, req: &RenderRequ
     if !ctx.is_cpu() || !deposit_ring(features) {
         return false;
     }
-    let (w, h) = atlas_size(req.width, req.height, deposit_levels(features));
+    // The rect is not known yet: the whole frame's atlas, which holds any rect's.
+    let (w, h) = atlas_size(&PixelRect::frame(req.width, req.height), deposit_levels(features));
     AliasedBuffer::supported(ctx, vk::Format::R32_UINT, w, h, MAX_DEPOSIT_LAYERS)
 }
 
@@ -918,9 +938,9 @@ pub(super) fn run(
     layout.skip_empty_view_tiles = !req.step_empty_view_tiles;
     layout.refraction = features.refraction;
     let levels = deposit_levels(&features);
-    layout.deposits = DepositLayout::packed(view.width, view.height, levels);
+    layout.deposits = DepositLayout::packed(&view.rect, levels);
     if features.deposit_image {
-        let (w, h) = atlas_size(view.width, view.height, levels);
+        let (w, h) = atlas_size(&view.rect, levels);
         let image = AliasedBuffer::layout(ctx, vk::Format::R32_UINT, w, h, MAX_DEPOSIT_LAYERS)
             .ok_or_else(|| RenderError::Setup("internal: the deposited light's image is not supported".into()))?;
         layout.atlas = (w, h);
@@ -1400,6 +1420,8 @@ pub(super) fn run(
 
 #[cfg(test)]
 mod tests {
+    use crate::scene::view::PixelRect;
+
     #[test]
     fn pyramid_levels_match_the_shader() {
         for line in [
@@ -1413,32 +1435,79 @@ mod tests {
         }
     }
 
+    fn rect(x0: u32, y0: u32, x1: u32, y1: u32) -> PixelRect {
+        PixelRect { x0, y0, x1, y1 }
+    }
+
     #[test]
-    fn a_pyramid_plane_is_a_third_larger_than_the_image() {
+    fn a_pyramid_plane_is_a_third_larger_than_the_rect() {
         // 64² + 32² + 16² texels.
-        assert_eq!(super::pyramid_texels(64, 64, super::ACC_LEVELS), 4096 + 1024 + 256);
-        assert_eq!(super::pyramid_texels(5, 3, super::ACC_LEVELS), 15 + 6 + 2);
+        assert_eq!(
+            super::pyramid_texels(&PixelRect::frame(64, 64), super::ACC_LEVELS),
+            4096 + 1024 + 256
+        );
+        assert_eq!(
+            super::pyramid_texels(&PixelRect::frame(5, 3), super::ACC_LEVELS),
+            15 + 6 + 2
+        );
+        // A rect away from the corner: a level holds the texels that meet it, which may be one
+        // more per axis than its side halved. Pixels 3..8 × 2..3: texels 1..3 × 1..1 of level
+        // 1, 0..1 × 0..0 of level 2.
+        assert_eq!(super::pyramid_texels(&rect(3, 2, 8, 3), super::ACC_LEVELS), 5 + 3 + 2);
+        // The CT head in the viewer's portrait viewport (644×580 of 644×768): about a quarter
+        // fewer texels than the frame's.
+        let frame = super::pyramid_texels(&PixelRect::frame(644, 768), super::ACC_LEVELS);
+        let head = super::pyramid_texels(&rect(0, 94, 644, 674), super::ACC_LEVELS);
+        assert!(head * 100 < frame * 76, "{head} of {frame}");
     }
 
     #[test]
     fn the_deposit_atlas_holds_the_levels_side_by_side() {
         // Level 0 (64²) beside a column of 32² over 16².
-        assert_eq!(super::atlas_size(64, 64, super::ACC_LEVELS), (96, 64));
+        assert_eq!(
+            super::atlas_size(&PixelRect::frame(64, 64), super::ACC_LEVELS),
+            (96, 64)
+        );
         // Odd sides round up: 5×3, then 3×2 over 2×1; the column (3 rows) is as tall as
         // level 0.
-        assert_eq!(super::atlas_size(5, 3, super::ACC_LEVELS), (8, 3));
+        assert_eq!(super::atlas_size(&PixelRect::frame(5, 3), super::ACC_LEVELS), (8, 3));
         // Seven levels of 1×1 stack six rows beside a one-row level 0.
-        assert_eq!(super::atlas_size(1, 1, super::SCATTER_LEVELS), (2, 6));
+        assert_eq!(
+            super::atlas_size(&PixelRect::frame(1, 1), super::SCATTER_LEVELS),
+            (2, 6)
+        );
         // Every level fits (the shader's `level_origin`): level 0 and the column's rows, each
-        // no wider than level 1.
-        for (w, h, levels) in [(64, 64, 3), (643, 769, 3), (100, 7, 7), (1, 1, 7)] {
-            let (aw, ah) = super::atlas_size(w, h, levels);
-            let rows: u32 = (1..levels).map(|m| h.div_ceil(1 << m)).sum();
-            assert!(rows <= ah && h <= ah && w + w.div_ceil(2) == aw);
-            assert!((1..levels).all(|m| w.div_ceil(1 << m) <= w.div_ceil(2)));
-            // So it has room for every texel of the pyramid.
-            let pyramid = super::pyramid_texels(w, h, levels);
-            assert!(aw as u64 * ah as u64 >= pyramid);
+        // no wider than level 1; and a rect's atlas fits in its frame's (`deposit_image`
+        // checks the frame's before the rect is known).
+        let rects = [
+            (64, 64, rect(0, 0, 64, 64)),
+            (643, 769, rect(0, 0, 643, 769)),
+            (643, 769, rect(1, 95, 642, 674)),
+            (100, 7, rect(3, 1, 99, 6)),
+            (1, 1, rect(0, 0, 1, 1)),
+            (9, 9, rect(4, 4, 4, 4)),
+        ];
+        for (w, h, r) in rects {
+            for levels in [super::ACC_LEVELS, super::SCATTER_LEVELS] {
+                let (aw, ah) = super::atlas_size(&r, levels);
+                let (w0, h0) = super::level_dims(&r, 0);
+                let w1 = super::level_dims(&r, 1).0;
+                let rows: u32 = (1..levels).map(|m| super::level_dims(&r, m).1).sum();
+                assert!(rows <= ah && h0 <= ah && w0 + w1 == aw);
+                assert!((1..levels).all(|m| super::level_dims(&r, m).0 <= w1));
+                // Each level holds every texel that meets the rect.
+                for m in 0..levels {
+                    let (lw, lh) = super::level_dims(&r, m);
+                    if r.x1 > r.x0 {
+                        assert_eq!((r.x0 >> m) + lw - 1, (r.x1 - 1) >> m);
+                        assert_eq!((r.y0 >> m) + lh - 1, (r.y1 - 1) >> m);
+                    }
+                }
+                // So it has room for every texel of the pyramid.
+                assert!(aw as u64 * ah as u64 >= super::pyramid_texels(&r, levels));
+                let (fw, fh) = super::atlas_size(&PixelRect::frame(w, h), levels);
+                assert!(aw <= fw && ah <= fh, "{aw}×{ah} beyond {fw}×{fh}");
+            }
         }
     }
 
