@@ -56,7 +56,9 @@ fn light_list_slot(parity: u32, offset: u32, list: u32) -> u64 {
 /// up to 1024²; refracted beams' deposits, eight planes up to the viewer's full level
 /// (644×768) and at 1024² eight where the light is grey, six where the medium colours it
 /// (rgb; five where a CPU driver reads them through an image, whose atlas is a seventh
-/// larger: `atlas_size`). The deposits are one storage buffer, and 128 MiB is the least storage buffer range
+/// larger: `atlas_size`), for a volume that covers the frame (the deposits cover the rect
+/// its rays can reach: seven planes through the image for the CT head's 1023×773 pixels at
+/// 1024²). The deposits are one storage buffer, and 128 MiB is the least storage buffer range
 /// Vulkan allows a device. A view pass per plane loads and stores every ray's record on every
 /// plane: with 48 MiB (one plane per pass at 1024² in rgb, four at 644×768) the CT head's
 /// view passes took 19–20 s at 1024² against 10.4 s with five planes per pass, and 6.0–6.3 s
