@@ -287,6 +287,16 @@ fn view_passes_over_several_planes_render_what_one_plane_per_pass_does() {
             let planes = one.stats.planes;
             // One pass per plane (the first reads plane 0's light); several: fewer than half.
             assert_eq!(one.stats.view_passes, planes, "{name}");
+            assert_eq!(one.stats.view_planes, 1, "{name}");
+            if view_planes > 0 {
+                assert_eq!(several.stats.view_planes, view_planes, "{name}");
+            }
+            assert!(
+                several.stats.view_planes > 1 && several.stats.view_passes * several.stats.view_planes + 2 >= planes,
+                "{name}: {} passes of up to {} planes for {planes} planes",
+                several.stats.view_passes,
+                several.stats.view_planes
+            );
             assert!(
                 several.stats.view_passes * 2 < planes,
                 "{name}: {} passes for {planes} planes",
@@ -498,6 +508,10 @@ fn timings_say_when_the_volume_is_sampled_at_half_resolution() {
         let stdout = String::from_utf8_lossy(&out.stdout);
         assert!(out.status.success(), "{stdout}{}", String::from_utf8_lossy(&out.stderr));
         assert_eq!(stdout.contains(line), said, "volume_level {level}:\n{stdout}");
+        assert!(
+            stdout.contains(" planes, each over up to "),
+            "the view passes' line:\n{stdout}"
+        );
     }
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -153,6 +153,10 @@ pub fn render(args: &RenderArgs) -> Result<()> {
             let [f, m, l] = axes.map(|a| ["x", "y", "z"][a as usize]);
             println!("volume textures laid out {f}, {m}, {l} (fastest first; stored x, y, z): the view looks along x");
         }
+        println!(
+            "view passes: {} over {} planes, each over up to {} planes",
+            s.view_passes, s.planes_run, s.view_planes
+        );
         if let Some(steps) = s.light_steps {
             let t = s.tile;
             println!("light tile steps: {steps} (tiles of {t}×{t} beams stepped, over all planes)");

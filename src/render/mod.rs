@@ -227,6 +227,10 @@ pub struct RenderStats {
     /// View passes of the sweep (one per plane, or fewer where each advances the rays over
     /// several: [`RenderRequest::view_planes`]).
     pub view_passes: u32,
+    /// The most planes a view pass advances its rays over: as the request asks
+    /// ([`RenderRequest::view_planes`]), else as many as the ring of light they read holds (up
+    /// to eight; at large sizes fewer, which decides much of the view passes' time).
+    pub view_planes: u32,
     /// Light passes of the sweep: one per plane, or one per view pass where the light is
     /// stepped over a view pass's planes in one dispatch ([`RenderRequest::per_plane_light`]).
     pub light_passes: u32,

@@ -1404,6 +1404,7 @@ pub(super) fn run(
                     light_grid: [layout.grid.width, layout.grid.height],
                     light_cell_pixels: layout.grid.stride,
                     view_passes,
+                    view_planes: layout.view_planes,
                     light_passes,
                     light_steps,
                     tile: layout.tile,
