@@ -729,9 +729,9 @@ fn deposited_at(slot: u32, t: vec2<f32>) -> LightSample {
             l.row = size.x;
         }
         let s = i32(1u << m);
-        let first = vec2<i32>(P.rect.xy) / s;
+        l.first = level_first(m);
+        let first = vec2<i32>(l.first);
         let last = (vec2<i32>(P.rect.zw) - vec2<i32>(1)) / s;
-        l.first = vec2<u32>(first);
         let tl = (t + vec2<f32>(0.5)) / f32(s) - vec2<f32>(0.5);
         let lo = floor(tl);
         let f = tl - lo;

@@ -368,6 +368,7 @@ impl crate::Classify for VolumeError {
 
 #[cfg(test)]
 mod tests {
+    use super::*;
 
     #[test]
     fn axes_reordered_keep_every_voxel() {
@@ -393,7 +394,6 @@ mod tests {
             }
         }
     }
-    use super::*;
 
     #[test]
     fn errors_in_a_files_data_name_the_file_and_its_format() {

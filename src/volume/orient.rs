@@ -261,11 +261,11 @@ pub(super) fn permute(v: &Volume, order: [usize; 3], flip: [bool; 3]) -> Vec<f32
     for z0 in (0..dims[2]).step_by(b) {
         for y0 in (0..dims[1]).step_by(b) {
             for x0 in (0..dims[0]).step_by(b) {
+                let x1 = (x0 + b).min(nx);
                 for z in z0..(z0 + b).min(dims[2]) {
                     for y in y0..(y0 + b).min(dims[1]) {
                         let src = start + y as isize * step[1] + z as isize * step[2];
                         let dst = (z * ny + y) * nx;
-                        let x1 = (x0 + b).min(nx);
                         for (x, o) in (x0..x1).zip(&mut out[dst + x0..dst + x1]) {
                             *o = v.data[(src + x as isize * step[0]) as usize];
                         }
