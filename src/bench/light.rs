@@ -92,20 +92,31 @@ pub struct LightPlan {
 }
 
 impl LightPlan {
-    /// R = 16 voxels at 128² (half-voxel texels), Δs = 1, ½, ¼, the planes of the caustics
-    /// checks (1.1, 1.25, 1.5, 2 and 3 R).
+    /// R = 16 voxels at 128² (half-voxel texels), Δs = 2, 1, ½, ¼, the planes of the caustics
+    /// checks (1.1, 1.25, 1.5, 2 and 3 R). Δs 2 shows the other side of the default: how the
+    /// error grows when the planes are coarser than the voxels.
     pub fn full(variants: Vec<Variant>) -> LightPlan {
         LightPlan {
             radius: 16.0,
             size: 128,
             depths: vec![1.1, 1.25, 1.5, 2.0, 3.0],
-            sample_distances: vec![1.0, 0.5, 0.25],
+            sample_distances: vec![2.0, 1.0, 0.5, 0.25],
             variants,
             frames: 3,
             reference: PlaneSettings {
                 rays_per_texel: 8,
                 ..PlaneSettings::default()
             },
+        }
+    }
+
+    /// The sample distance of the picture and of the voxelised ball's exact trace: the
+    /// default's (1) where the plan has it, else its first.
+    pub fn picture_distance(&self) -> f32 {
+        if self.sample_distances.contains(&1.0) {
+            1.0
+        } else {
+            self.sample_distances.first().copied().unwrap_or(1.0)
         }
     }
 
@@ -268,7 +279,7 @@ pub fn run(ctx: Arc<Context>, plan: &LightPlan, out: &Path) -> Result<LightRepor
     // The voxelised ball traced exactly: what sampling the lens onto voxels costs by itself.
     let first_zs: Vec<f64> = planes
         .iter()
-        .filter(|p| p.0 == plan.sample_distances[0])
+        .filter(|p| p.0 == plan.picture_distance())
         .map(|p| p.4)
         .collect();
     let voxels = plane_light::trace_scene(&exact_scene, size, size, &first_zs, &plan.reference)?;
@@ -278,7 +289,7 @@ pub fn run(ctx: Arc<Context>, plan: &LightPlan, out: &Path) -> Result<LightRepor
     let mut renderer = Renderer::new(ctx)?;
     let mut rows = Vec::new();
     // The picture: the exact light and each variant's at the first sample distance.
-    let first_ds = plan.sample_distances[0];
+    let first_ds = plan.picture_distance();
     let mut picture: Vec<Vec<ScalarImage>> = vec![planes
         .iter()
         .enumerate()
@@ -433,7 +444,7 @@ fn write_markdown(
         s,
         "`light.png`: the light on the planes at Δs = {}, one column per plane (nearest to {}), rows: the exact \
          light, the voxelised ball's exact light, then {}; each column scaled to the exact light's brightest texel, square-root tone.\n",
-        plan.sample_distances.first().copied().unwrap_or(1.0),
+        plan.picture_distance(),
         plan.depths
             .iter()
             .map(|d| format!("{d} R"))
@@ -614,4 +625,24 @@ pub fn convergence(
     }
     std::fs::write(path, s).map_err(|e| write_err(path)(e.to_string()))?;
     Ok(rows)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::LightPlan;
+
+    #[test]
+    fn the_picture_stays_at_the_default_sample_distance_when_the_plan_sweeps_coarser_ones() {
+        let full = LightPlan::full(Vec::new());
+        // The full plan measures Δs 2 first, but its picture and the voxelised ball's trace
+        // are those of the default Δs 1.
+        assert_eq!(full.sample_distances.first(), Some(&2.0));
+        assert_eq!(full.picture_distance(), 1.0);
+        // A plan without Δs 1 shows its first.
+        let only = LightPlan {
+            sample_distances: vec![0.5, 0.25],
+            ..LightPlan::quick(Vec::new())
+        };
+        assert_eq!(only.picture_distance(), 0.5);
+    }
 }

@@ -49,7 +49,7 @@ pub struct BenchArgs {
     no_highlights: bool,
     /// Instead of the sweep, the light-transport table: the light buffer against the exact
     /// light on planes 1.1–3 R behind a glass ball (R = 16 voxels), per transport and sample
-    /// distance 1, 0.5, 0.25; writes light.md and light.csv.
+    /// distance 2, 1, 0.5, 0.25; writes light.md and light.csv.
     #[arg(long)]
     light: bool,
     /// With --light: the image edge in texels (the frame spans 4 R; default 128, or 64 with
