@@ -110,13 +110,14 @@ impl LightPlan {
         }
     }
 
-    /// The sample distance of the picture and of the voxelised ball's exact trace: the
-    /// default's (1) where the plan has it, else its first.
+    /// The sample distance of the picture and of the voxelised ball's exact trace: a scene's
+    /// default where the plan has it, else its first.
     pub fn picture_distance(&self) -> f32 {
-        if self.sample_distances.contains(&1.0) {
-            1.0
+        let default = Quality::default().sample_distance;
+        if self.sample_distances.contains(&default) {
+            default
         } else {
-            self.sample_distances.first().copied().unwrap_or(1.0)
+            self.sample_distances.first().copied().unwrap_or(default)
         }
     }
 
@@ -276,24 +277,21 @@ pub fn run(ctx: Arc<Context>, plan: &LightPlan, out: &Path) -> Result<LightRepor
     let ball = graded_ball(&volume, plan.radius, centre_z);
     let exact = plane_light::trace_scene_through(&exact_scene, &ball, size, size, &zs, &plan.reference)?;
     let reference_seconds = started.elapsed().as_secs_f64();
-    // The voxelised ball traced exactly: what sampling the lens onto voxels costs by itself.
-    let first_zs: Vec<f64> = planes
-        .iter()
-        .filter(|p| p.0 == plan.picture_distance())
-        .map(|p| p.4)
-        .collect();
-    let voxels = plane_light::trace_scene(&exact_scene, size, size, &first_zs, &plan.reference)?;
+    // The voxelised ball traced exactly: what sampling the lens onto voxels costs by itself,
+    // on the planes of the picture's sample distance.
+    let picture_ds = plan.picture_distance();
+    let picture_zs: Vec<f64> = planes.iter().filter(|p| p.0 == picture_ds).map(|p| p.4).collect();
+    let voxels = plane_light::trace_scene(&exact_scene, size, size, &picture_zs, &plan.reference)?;
 
     let texel = 4.0 * plan.radius / size as f64;
     let centre = DVec2::splat((size as f64 - 1.0) / 2.0);
     let mut renderer = Renderer::new(ctx)?;
     let mut rows = Vec::new();
-    // The picture: the exact light and each variant's at the first sample distance.
-    let first_ds = plan.picture_distance();
+    // The picture: the exact light and each variant's at `picture_ds`.
     let mut picture: Vec<Vec<ScalarImage>> = vec![planes
         .iter()
         .enumerate()
-        .filter(|(_, p)| p.0 == first_ds)
+        .filter(|(_, p)| p.0 == picture_ds)
         .map(|(i, _)| exact.planes[i].channel(1))
         .collect()];
     let ratio = |a: f64, b: f64| if b != 0.0 { a / b } else { f64::NAN };
@@ -333,7 +331,8 @@ pub fn run(ctx: Arc<Context>, plan: &LightPlan, out: &Path) -> Result<LightRepor
         }
     };
     picture.push(Vec::new());
-    for (j, (i, &(ds, d, k, _, _, plane_r))) in planes.iter().enumerate().filter(|(_, p)| p.0 == first_ds).enumerate() {
+    for (j, (i, &(ds, d, k, _, _, plane_r))) in planes.iter().enumerate().filter(|(_, p)| p.0 == picture_ds).enumerate()
+    {
         let test = voxels.planes[j].channel(1);
         let truth = exact.planes[i].channel(1);
         if let Some(row) = picture.last_mut() {
@@ -378,7 +377,7 @@ pub fn run(ctx: Arc<Context>, plan: &LightPlan, out: &Path) -> Result<LightRepor
             let gpu = ScalarImage::from_image(&frame.image, 1);
             let mut truth = exact.planes[i].channel(1);
             truth.data.iter_mut().for_each(|v| *v *= light);
-            if ds == first_ds {
+            if ds == picture_ds {
                 if let Some(row) = picture.last_mut() {
                     row.push(gpu.clone());
                 }
