@@ -228,7 +228,7 @@ impl Animation {
     pub fn to_toml(&self) -> Result<String, AnimateError> {
         let body = toml::to_string(self).map_err(|e| AnimateError::Invalid(e.to_string()))?;
         Ok(format!(
-            "# caustica animation: render it with `caustica animate THIS_FILE -o DIR` (see README, \"Animations\")\n{body}"
+            "# caustica animation: render it with `caustica animate THIS_FILE -o DIR` (see README, `animate`)\n{body}"
         ))
     }
 

@@ -20,7 +20,7 @@ pub enum VolumeSource {
         #[serde(default = "default_resolution")]
         resolution: usize,
     },
-    /// A file whose format is known from its extension (see README, "Volume formats"), or a
+    /// A file whose format is known from its extension (see README, "Volume input"), or a
     /// directory holding a DICOM series; `series` picks one of several DICOM series (its
     /// number in `caustica info DIR`, or its UID).
     File {
