@@ -731,7 +731,7 @@ fn deposited_at(slot: u32, t: vec2<f32>) -> LightSample {
         let s = i32(1u << m);
         l.first = level_first(m);
         let first = vec2<i32>(l.first);
-        let last = (vec2<i32>(P.rect.zw) - vec2<i32>(1)) / s;
+        let last = first + vec2<i32>(size) - vec2<i32>(1);
         let tl = (t + vec2<f32>(0.5)) / f32(s) - vec2<f32>(0.5);
         let lo = floor(tl);
         let f = tl - lo;
