@@ -217,6 +217,40 @@ impl Progressive {
     }
 }
 
+/// How long a frame renders before the window's title shows how far it has got, and how often
+/// it is brought up to date then: the coarse levels, a tenth of a second each, leave it alone.
+/// (The title, not the panel: repainting the window takes 40–50 ms of a CPU's time on a
+/// software surface, which a frame rendered on the same CPU would lose.)
+pub const TITLE_AFTER: Duration = Duration::from_secs(1);
+pub const TITLE_EVERY: Duration = Duration::from_millis(500);
+
+/// A frame being rendered, as the title names it: what it is (the level, or "accumulate"),
+/// its size, and the dispatches of its sweep done of all (0 of 0 while the scene is set up).
+#[derive(Clone, Copy, Debug)]
+pub struct InFlight<'a> {
+    pub name: &'a str,
+    pub size: (u32, u32),
+    pub done: u32,
+    pub total: u32,
+}
+
+/// The window's title while `frame` renders, `elapsed` after it was asked for: what it is and
+/// how far it has got; just the program's name before `TITLE_AFTER` and without a frame.
+pub fn progress_title(frame: Option<InFlight>, elapsed: Duration) -> String {
+    let Some(f) = frame.filter(|_| elapsed >= TITLE_AFTER) else {
+        return "caustica".into();
+    };
+    let (name, (w, h), secs) = (f.name, f.size, elapsed.as_secs_f64());
+    if f.total == 0 {
+        return format!("caustica · {name} {w}×{h} · setting up · {secs:.0} s");
+    }
+    let percent = (100 * f.done as u64 / f.total as u64).min(100);
+    format!(
+        "caustica · {name} {w}×{h} · {percent} % of {} planes · {secs:.0} s",
+        f.total
+    )
+}
+
 /// The image to show for a finished frame: at the full level the mean of its passes so far
 /// (`sum` holds their sum and count; pass 0 starts it), coarser levels as they are.
 pub fn accumulate(sum: &mut Option<(RenderedImage, u32)>, job: Job, image: RenderedImage) -> RenderedImage {
@@ -265,6 +299,35 @@ mod tests {
         assert_eq!(accumulate(&mut sum, job(0, 0), flat(8.0)).pixels[0][0], 8.0);
         assert!(sum.is_none());
         assert_eq!(accumulate(&mut sum, job(FULL, 3), flat(5.0)).pixels[0][0], 5.0);
+    }
+
+    /// The title names a long frame and how far its sweep has got, and stays the program's
+    /// name for short ones and between frames.
+    #[test]
+    fn the_title_shows_a_long_frames_progress() {
+        let frame = |done, total| {
+            Some(InFlight {
+                name: "full",
+                size: (644, 768),
+                done,
+                total,
+            })
+        };
+        let s = |ms| Duration::from_millis(ms);
+        assert_eq!(progress_title(frame(10, 342), s(400)), "caustica");
+        assert_eq!(progress_title(None, s(5000)), "caustica");
+        assert_eq!(
+            progress_title(frame(0, 0), s(1200)),
+            "caustica · full 644×768 · setting up · 1 s"
+        );
+        assert_eq!(
+            progress_title(frame(171, 342), s(4600)),
+            "caustica · full 644×768 · 50 % of 342 planes · 5 s"
+        );
+        assert_eq!(
+            progress_title(frame(342, 342), s(10_400)),
+            "caustica · full 644×768 · 100 % of 342 planes · 10 s"
+        );
     }
 
     #[test]

@@ -18,11 +18,11 @@ use winit::event_loop::{ActiveEventLoop, ControlFlow};
 use winit::window::{Window, WindowId};
 
 use super::panel::{Action, ViewState};
-use super::progressive::{Progressive, LEVELS};
+use super::progressive::{progress_title, InFlight, Job, Progressive, LEVELS, TITLE_EVERY};
 use super::raster::{Painter, Target};
 use super::worker::{Reply, Request, Worker};
 use super::ViewError;
-use crate::render::RenderedImage;
+use crate::render::{RenderedImage, SweepProgress};
 use crate::scene::Scene;
 use present::{blit, pack, Shown};
 
@@ -71,6 +71,20 @@ pub struct App {
     pub error: Option<ViewError>,
     /// The view version whose settled frame was last written (--screenshot, --save-scene).
     written_version: u64,
+    /// The frame being rendered, for the title ([`progress_title`]).
+    rendering: Option<Rendering>,
+    /// The title the window was given last.
+    title: String,
+}
+
+/// A frame asked of the render thread and not answered yet: its job, what the title calls it,
+/// its size, its sweep's progress and when it was asked for.
+struct Rendering {
+    job: Job,
+    name: &'static str,
+    size: (u32, u32),
+    progress: Arc<SweepProgress>,
+    since: Instant,
 }
 
 impl App {
@@ -92,6 +106,8 @@ impl App {
             no_viewport: false,
             error: None,
             written_version: 0,
+            rendering: None,
+            title: "caustica".into(),
         }
     }
 
@@ -128,6 +144,7 @@ impl App {
                     stats,
                     duration_ms,
                 } => {
+                    self.answered(job);
                     if self.progressive.finished(job, true) {
                         let name = if job.pass > 0 {
                             "accumulate"
@@ -165,10 +182,12 @@ impl App {
                     }
                 }
                 Reply::Cancelled { job } => {
+                    self.answered(job);
                     self.progressive.finished(job, false);
                 }
                 Reply::Failed { job, message, class } => {
                     if let Some(job) = job {
+                        self.answered(job);
                         self.progressive.finished(job, false);
                     }
                     self.state.status.message = message.clone();
@@ -191,6 +210,37 @@ impl App {
                     };
                 }
             }
+        }
+    }
+
+    /// The render thread has answered `job`: it no longer renders.
+    fn answered(&mut self, job: Job) {
+        if self.rendering.as_ref().is_some_and(|r| r.job == job) {
+            self.rendering = None;
+        }
+    }
+
+    /// Gives the window the title [`progress_title`] makes of the frame being rendered, if it
+    /// changed.
+    fn update_title(&mut self, now: Instant) {
+        let title = match &self.rendering {
+            Some(r) => {
+                let (done, total) = r.progress.get();
+                let frame = InFlight {
+                    name: r.name,
+                    size: r.size,
+                    done,
+                    total,
+                };
+                progress_title(Some(frame), now - r.since)
+            }
+            None => progress_title(None, Default::default()),
+        };
+        if title != self.title {
+            if let Some(s) = &self.surface {
+                s.window.set_title(&title);
+            }
+            self.title = title;
         }
     }
 
@@ -221,12 +271,21 @@ impl App {
             scene.quality.volume_level = scene.quality.volume_level.max(level.volume_level);
             let (w, h) = level.size(render_size.0, render_size.1);
             self.cancel = Arc::new(AtomicBool::new(false));
+            let progress = Arc::new(SweepProgress::default());
+            self.rendering = Some(Rendering {
+                job,
+                name: if job.pass > 0 { "accumulate" } else { level.name },
+                size: (w, h),
+                progress: progress.clone(),
+                since: now,
+            });
             self.worker.send(Request::Frame {
                 job,
                 scene: Box::new(scene),
                 width: w,
                 height: h,
                 cancel: self.cancel.clone(),
+                progress,
                 // The frame log prints the passes' times (which the timestamps between them
                 // add to a little: about 0.08 ms per plane on lavapipe).
                 pass_timings: self.opts.frame_log,
@@ -439,15 +498,19 @@ impl ApplicationHandler<Wake> for App {
     }
 
     fn about_to_wait(&mut self, event_loop: &ActiveEventLoop) {
+        let now = Instant::now();
+        self.update_title(now);
+        // While a frame renders, look again at its progress now and then (a title, no repaint).
+        let title_at = self.rendering.as_ref().map(|_| now + TITLE_EVERY);
         match self.progressive.wake_at().filter(|_| !self.no_viewport) {
-            Some(t) if t <= Instant::now() => {
+            Some(t) if t <= now => {
                 if let Some(s) = &self.surface {
                     s.window.request_redraw();
                 }
-                event_loop.set_control_flow(ControlFlow::Wait);
+                event_loop.set_control_flow(title_at.map_or(ControlFlow::Wait, ControlFlow::WaitUntil));
             }
-            Some(t) => event_loop.set_control_flow(ControlFlow::WaitUntil(t)),
-            None => event_loop.set_control_flow(ControlFlow::Wait),
+            Some(t) => event_loop.set_control_flow(ControlFlow::WaitUntil(title_at.map_or(t, |a| a.min(t)))),
+            None => event_loop.set_control_flow(title_at.map_or(ControlFlow::Wait, ControlFlow::WaitUntil)),
         }
     }
 }

@@ -13,7 +13,7 @@ use std::time::Instant;
 
 use crate::render::{
     jitter_sequence, EnvMap, PreparedScene, RenderError, RenderRequest, RenderStats, RenderedImage, Renderer,
-    VolumeLayout,
+    SweepProgress, VolumeLayout,
 };
 use crate::scene::{Scene, VolumeSource};
 use crate::{Classify, ExitClass};
@@ -29,6 +29,8 @@ pub enum Request {
         width: u32,
         height: u32,
         cancel: Arc<AtomicBool>,
+        /// Where the frame's sweep has got, for the window to show while it renders.
+        progress: Arc<SweepProgress>,
         /// Time each pass apart (the frame log prints them).
         pass_timings: bool,
     },
@@ -208,6 +210,7 @@ fn handle(
             width,
             height,
             cancel,
+            progress,
             pass_timings,
         } => {
             if cancel.load(Ordering::Relaxed) {
@@ -219,6 +222,7 @@ fn handle(
             let result = set_scene(renderer, prepared, allow_downsample, *scene, send).and_then(|()| {
                 let mut req = RenderRequest::new(width, height);
                 req.cancel = Some(cancel);
+                req.sweep_progress = Some(progress);
                 req.pass_timings = pass_timings;
                 // The coarse levels read the volumes' half-resolution level: made with the
                 // first frame, so no level uploads the volumes again.
@@ -298,12 +302,30 @@ mod tests {
             level: 2,
             pass: 0,
         };
+        let cancelled_progress = Arc::new(SweepProgress::default());
         worker.send(Request::Frame {
             job: cancelled,
             scene: Box::new(scene.clone()),
             width: 40,
             height: 30,
             cancel: Arc::new(AtomicBool::new(true)),
+            progress: cancelled_progress.clone(),
+            pass_timings: false,
+        });
+        // A frame rendered: its progress ends with every dispatch of its sweep done.
+        let rendered = Job {
+            version: 8,
+            level: 2,
+            pass: 0,
+        };
+        let progress = Arc::new(SweepProgress::default());
+        worker.send(Request::Frame {
+            job: rendered,
+            scene: Box::new(scene.clone()),
+            width: 40,
+            height: 30,
+            cancel: Arc::new(AtomicBool::new(false)),
+            progress: progress.clone(),
             pass_timings: false,
         });
         for ext in ["png", "exr"] {
@@ -314,21 +336,33 @@ mod tests {
                 path: dir.join(format!("shot.{ext}")),
             });
         }
-        let (mut saved, mut was_cancelled) = (0, false);
-        while saved < 2 || !was_cancelled {
+        let (mut saved, mut was_cancelled, mut planes_run) = (0, false, None);
+        while saved < 2 || !was_cancelled || planes_run.is_none() {
             match worker.replies.recv_timeout(Duration::from_secs(120)).expect("a reply") {
                 Reply::Saved { result, .. } => {
                     result.unwrap();
                     saved += 1;
                 }
                 Reply::Cancelled { job } => was_cancelled = job == cancelled,
-                Reply::Frame { .. } => panic!("a cancelled frame was rendered"),
+                Reply::Frame { job, stats, .. } => {
+                    assert_eq!(job, rendered, "a cancelled frame was rendered");
+                    planes_run = Some(stats.planes_run);
+                }
                 Reply::Failed { message, .. } => panic!("{message}"),
                 Reply::Volume { .. } => panic!("the volume did not change"),
             }
         }
         worker.stop();
         assert!(was_cancelled);
+        // One dispatch per plane the image integrates (the last also composites the image).
+        let planes_run = planes_run.unwrap();
+        assert!(planes_run > 1, "{planes_run} planes");
+        assert_eq!(
+            progress.get(),
+            (planes_run, planes_run),
+            "the rendered frame's progress"
+        );
+        assert_eq!(cancelled_progress.get(), (0, 0), "a frame cancelled before it started");
         let png = image::open(dir.join("shot.png")).unwrap().to_rgba8();
         assert_eq!((png.width(), png.height()), (40, 30));
         assert_eq!(
@@ -395,6 +429,7 @@ mod tests {
             width: 32,
             height: 24,
             cancel: Arc::new(AtomicBool::new(false)),
+            progress: Arc::new(SweepProgress::default()),
             pass_timings: false,
         });
         let mut bars = None;
@@ -422,6 +457,7 @@ mod tests {
                 width: 32,
                 height: 24,
                 cancel: Arc::new(AtomicBool::new(false)),
+                progress: Arc::new(SweepProgress::default()),
                 pass_timings: false,
             });
             match worker.replies.recv_timeout(Duration::from_secs(120)).expect("a reply") {

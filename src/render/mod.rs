@@ -31,7 +31,7 @@ pub use crate::scene::{PrepareError, PreparedScene, VolumeInfo};
 use crate::scene::environment;
 
 use std::collections::HashMap;
-use std::sync::atomic::AtomicBool;
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use std::sync::Arc;
 
 use rayon::prelude::*;
@@ -90,6 +90,9 @@ pub struct RenderRequest {
     /// Checked between submissions: when set, the render stops with [`RenderError::Cancelled`].
     /// Renders with a flag are submitted in smaller chunks so they stop sooner.
     pub cancel: Option<Arc<AtomicBool>>,
+    /// Where the sweep has got, updated after each submission, for a window to show while the
+    /// frame renders ([`SweepProgress`]).
+    pub sweep_progress: Option<Arc<SweepProgress>>,
     /// Offsets of the sampling lattices, each a fraction in [0, 1): the planes (of the plane
     /// distance, toward the camera) and the light grid (of a cell, along x and y). Zero for the
     /// standard sweep; [`accumulate`] averages renders over a sequence of them, so that
@@ -146,6 +149,30 @@ pub struct RenderRequest {
     pub volume_layout: VolumeLayout,
 }
 
+/// How far a render's sweep has got: the sweep's dispatches done (one per plane, the last
+/// also the finish) and their number, written by the render thread after each submission and
+/// read by another (the viewer's window, which shows them while a long frame renders). Zero
+/// of zero until the sweep starts, that is while the scene is being set up.
+#[derive(Debug, Default)]
+pub struct SweepProgress {
+    done: AtomicU32,
+    total: AtomicU32,
+}
+
+impl SweepProgress {
+    /// (done, total).
+    pub fn get(&self) -> (u32, u32) {
+        // The total first: a reader never sees more done than there are.
+        let total = self.total.load(Ordering::Acquire);
+        (self.done.load(Ordering::Acquire).min(total), total)
+    }
+
+    pub(crate) fn set(&self, done: u32, total: u32) {
+        self.total.store(total, Ordering::Release);
+        self.done.store(done, Ordering::Release);
+    }
+}
+
 /// How a render's volume textures lay out the volume's axes in memory.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum VolumeLayout {
@@ -174,6 +201,7 @@ impl RenderRequest {
             progress: false,
             safeguards_off: 0,
             cancel: None,
+            sweep_progress: None,
             jitter: [0.0; 3],
             view_planes: 0,
             keep_unseen_light: false,

@@ -1205,6 +1205,9 @@ pub(super) fn run(
         planes_run - 1
     };
     let bar = progress_bar(req.progress, dispatches as u64);
+    if let Some(p) = &req.sweep_progress {
+        p.set(0, dispatches);
+    }
     let mut gpu_ms = lbm_light.as_ref().map_or(0.0, |l| l.stats.gpu_ms);
     let mut pass_ms = [0.0; 4];
     // Dispatch k's view pass, if it has one, advances the rays to plane k-1 from the plane the
@@ -1371,6 +1374,9 @@ pub(super) fn run(
         }
         if let Some(b) = &bar {
             b.set_position((plane - 1) as u64);
+        }
+        if let Some(p) = &req.sweep_progress {
+            p.set(plane - 1, dispatches);
         }
         if last {
             if let Some(b) = bar {
