@@ -224,12 +224,14 @@ impl Progressive {
 pub const TITLE_AFTER: Duration = Duration::from_secs(1);
 pub const TITLE_EVERY: Duration = Duration::from_millis(500);
 
-/// A frame being rendered, as the title names it: what it is (the level, or "accumulate"),
-/// its size, and the dispatches of its sweep done of all (0 of 0 while the scene is set up).
+/// A frame being rendered, as the title names it: its level, its size, which of the
+/// full-quality passes it is (after the first, of `ACCUMULATE`), and the dispatches of its
+/// sweep done of all (0 of 0 while the scene is set up).
 #[derive(Clone, Copy, Debug)]
 pub struct InFlight<'a> {
     pub name: &'a str,
     pub size: (u32, u32),
+    pub pass: u32,
     pub done: u32,
     pub total: u32,
 }
@@ -241,12 +243,17 @@ pub fn progress_title(frame: Option<InFlight>, elapsed: Duration) -> String {
         return "caustica".into();
     };
     let (name, (w, h), secs) = (f.name, f.size, elapsed.as_secs_f64());
+    let pass = if f.pass > 0 {
+        format!(", pass {} of {ACCUMULATE}", f.pass + 1)
+    } else {
+        String::new()
+    };
     if f.total == 0 {
-        return format!("caustica · {name} {w}×{h} · setting up · {secs:.0} s");
+        return format!("caustica · {name} {w}×{h}{pass} · setting up · {secs:.0} s");
     }
     let percent = (100 * f.done as u64 / f.total as u64).min(100);
     format!(
-        "caustica · {name} {w}×{h} · {percent} % of {} planes · {secs:.0} s",
+        "caustica · {name} {w}×{h}{pass} · {percent} % of {} planes · {secs:.0} s",
         f.total
     )
 }
@@ -309,6 +316,7 @@ mod tests {
             Some(InFlight {
                 name: "full",
                 size: (644, 768),
+                pass: 0,
                 done,
                 total,
             })
@@ -327,6 +335,12 @@ mod tests {
         assert_eq!(
             progress_title(frame(342, 342), s(10_400)),
             "caustica · full 644×768 · 100 % of 342 planes · 10 s"
+        );
+        // The passes averaged into the full frame say which they are.
+        let second = frame(34, 342).map(|f| InFlight { pass: 1, ..f });
+        assert_eq!(
+            progress_title(second, s(2000)),
+            format!("caustica · full 644×768, pass 2 of {ACCUMULATE} · 9 % of 342 planes · 2 s")
         );
     }
 

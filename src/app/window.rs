@@ -77,11 +77,10 @@ pub struct App {
     title: String,
 }
 
-/// A frame asked of the render thread and not answered yet: its job, what the title calls it,
-/// its size, its sweep's progress and when it was asked for.
+/// A frame asked of the render thread and not answered yet: its job, its size, its sweep's
+/// progress and when it was asked for.
 struct Rendering {
     job: Job,
-    name: &'static str,
     size: (u32, u32),
     progress: Arc<SweepProgress>,
     since: Instant,
@@ -227,8 +226,9 @@ impl App {
             Some(r) => {
                 let (done, total) = r.progress.get();
                 let frame = InFlight {
-                    name: r.name,
+                    name: LEVELS[r.job.level].name,
                     size: r.size,
+                    pass: r.job.pass,
                     done,
                     total,
                 };
@@ -274,7 +274,6 @@ impl App {
             let progress = Arc::new(SweepProgress::default());
             self.rendering = Some(Rendering {
                 job,
-                name: if job.pass > 0 { "accumulate" } else { level.name },
                 size: (w, h),
                 progress: progress.clone(),
                 since: now,
