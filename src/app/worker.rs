@@ -312,7 +312,7 @@ mod tests {
             progress: cancelled_progress.clone(),
             pass_timings: false,
         });
-        // A frame rendered: its progress ends with every dispatch of its sweep done.
+        // A frame rendered: its progress ends with every step of its sweep done.
         let rendered = Job {
             version: 8,
             level: 2,
@@ -354,7 +354,7 @@ mod tests {
         }
         worker.stop();
         assert!(was_cancelled);
-        // One dispatch per plane the image integrates (the last also composites the image).
+        // It ends at the sweep's last step: one per plane the image integrates.
         let planes_run = planes_run.unwrap();
         assert!(planes_run > 1, "{planes_run} planes");
         assert_eq!(

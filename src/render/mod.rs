@@ -149,10 +149,11 @@ pub struct RenderRequest {
     pub volume_layout: VolumeLayout,
 }
 
-/// How far a render's sweep has got: the sweep's dispatches done (one per plane, the last
-/// also the finish) and their number, written by the render thread after each submission and
-/// read by another (the viewer's window, which shows them while a long frame renders). Zero
-/// of zero until the sweep starts, that is while the scene is being set up.
+/// How far a render's sweep has got: its steps done (a step per plane: the light to plane k,
+/// the view rays to plane k-1, the lists for the planes after) and their number, written by
+/// the render thread after each submission and read by another (the viewer's window, which
+/// shows them while a long frame renders). Zero of zero until the sweep starts, that is while
+/// the scene is being set up.
 #[derive(Debug, Default)]
 pub struct SweepProgress {
     done: AtomicU32,
