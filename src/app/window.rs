@@ -501,15 +501,14 @@ impl ApplicationHandler<Wake> for App {
         self.update_title(now);
         // While a frame renders, look again at its progress now and then (a title, no repaint).
         let title_at = self.rendering.as_ref().map(|_| now + TITLE_EVERY);
-        match self.progressive.wake_at().filter(|_| !self.no_viewport) {
-            Some(t) if t <= now => {
-                if let Some(s) = &self.surface {
-                    s.window.request_redraw();
-                }
-                event_loop.set_control_flow(title_at.map_or(ControlFlow::Wait, ControlFlow::WaitUntil));
+        let mut refine_at = self.progressive.wake_at().filter(|_| !self.no_viewport);
+        if refine_at.is_some_and(|t| t <= now) {
+            if let Some(s) = &self.surface {
+                s.window.request_redraw();
             }
-            Some(t) => event_loop.set_control_flow(ControlFlow::WaitUntil(title_at.map_or(t, |a| a.min(t)))),
-            None => event_loop.set_control_flow(title_at.map_or(ControlFlow::Wait, ControlFlow::WaitUntil)),
+            refine_at = None;
         }
+        let next = refine_at.into_iter().chain(title_at).min();
+        event_loop.set_control_flow(next.map_or(ControlFlow::Wait, ControlFlow::WaitUntil));
     }
 }
