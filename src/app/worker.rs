@@ -276,6 +276,20 @@ mod tests {
     use crate::scene::{builtin, VolumeSource};
     use std::time::Duration;
 
+    /// A request for `job`, a frame of `scene` at w×h, its cancel flag already raised or not,
+    /// its sweep reported to `progress`.
+    fn frame(job: Job, scene: &Scene, (w, h): (u32, u32), cancelled: bool, progress: &Arc<SweepProgress>) -> Request {
+        Request::Frame {
+            job,
+            scene: Box::new(scene.clone()),
+            width: w,
+            height: h,
+            cancel: Arc::new(AtomicBool::new(cancelled)),
+            progress: progress.clone(),
+            pass_timings: false,
+        }
+    }
+
     fn small_scene() -> Scene {
         let mut scene = builtin("ball-lens").unwrap().scene;
         scene.volume = VolumeSource::builtin("ball-lens", 32);
@@ -297,37 +311,17 @@ mod tests {
         let mut worker = Worker::start(Renderer::new(ctx.clone()).unwrap(), worker_prepared, true, || {});
         let dir = std::env::temp_dir().join(format!("caustica-worker-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
-        let cancelled = Job {
-            version: 7,
+        let job = |version| Job {
+            version,
             level: 2,
             pass: 0,
         };
+        let (cancelled, rendered) = (job(7), job(8));
         let cancelled_progress = Arc::new(SweepProgress::default());
-        worker.send(Request::Frame {
-            job: cancelled,
-            scene: Box::new(scene.clone()),
-            width: 40,
-            height: 30,
-            cancel: Arc::new(AtomicBool::new(true)),
-            progress: cancelled_progress.clone(),
-            pass_timings: false,
-        });
+        worker.send(frame(cancelled, &scene, (40, 30), true, &cancelled_progress));
         // A frame rendered: its progress ends with every step of its sweep done.
-        let rendered = Job {
-            version: 8,
-            level: 2,
-            pass: 0,
-        };
         let progress = Arc::new(SweepProgress::default());
-        worker.send(Request::Frame {
-            job: rendered,
-            scene: Box::new(scene.clone()),
-            width: 40,
-            height: 30,
-            cancel: Arc::new(AtomicBool::new(false)),
-            progress: progress.clone(),
-            pass_timings: false,
-        });
+        worker.send(frame(rendered, &scene, (40, 30), false, &progress));
         for ext in ["png", "exr"] {
             worker.send(Request::Screenshot {
                 scene: Box::new(scene.clone()),
@@ -418,20 +412,18 @@ mod tests {
             "the frames differ"
         );
         let mut worker = Worker::start(Renderer::new(ctx.clone()).unwrap(), prepared, true, || {});
-        let job = Job {
-            version: 1,
-            level: 0,
-            pass: 0,
-        };
-        worker.send(Request::Frame {
-            job,
-            scene: Box::new(later),
-            width: 32,
-            height: 24,
-            cancel: Arc::new(AtomicBool::new(false)),
-            progress: Arc::new(SweepProgress::default()),
-            pass_timings: false,
-        });
+        let progress = Arc::new(SweepProgress::default());
+        worker.send(frame(
+            Job {
+                version: 1,
+                level: 0,
+                pass: 0,
+            },
+            &later,
+            (32, 24),
+            false,
+            &progress,
+        ));
         let mut bars = None;
         let image = loop {
             match worker.replies.recv_timeout(Duration::from_secs(120)).expect("a reply") {
@@ -447,19 +439,12 @@ mod tests {
         let mut broken = scene.clone();
         broken.volume.set_frame(2);
         for version in [2, 3] {
-            worker.send(Request::Frame {
-                job: Job {
-                    version,
-                    level: 0,
-                    pass: 0,
-                },
-                scene: Box::new(broken.clone()),
-                width: 32,
-                height: 24,
-                cancel: Arc::new(AtomicBool::new(false)),
-                progress: Arc::new(SweepProgress::default()),
-                pass_timings: false,
-            });
+            let job = Job {
+                version,
+                level: 0,
+                pass: 0,
+            };
+            worker.send(frame(job, &broken, (32, 24), false, &progress));
             match worker.replies.recv_timeout(Duration::from_secs(120)).expect("a reply") {
                 Reply::Failed { message, .. } => assert!(message.contains("t2.nrrd"), "{message}"),
                 _ => panic!("frame 2 is broken, yet the request did not fail"),
