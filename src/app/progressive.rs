@@ -225,7 +225,7 @@ pub const TITLE_AFTER: Duration = Duration::from_secs(1);
 pub const TITLE_EVERY: Duration = Duration::from_millis(500);
 
 /// A frame being rendered, as the title names it: its level, its size, which of the
-/// full-quality passes it is (after the first, of `ACCUMULATE`), and the dispatches of its
+/// full-quality passes it is (after the first, of `ACCUMULATE`), and the steps of its
 /// sweep done of all (0 of 0 while the scene is set up).
 #[derive(Clone, Copy, Debug)]
 pub struct InFlight<'a> {
