@@ -412,18 +412,13 @@ mod tests {
             "the frames differ"
         );
         let mut worker = Worker::start(Renderer::new(ctx.clone()).unwrap(), prepared, true, || {});
+        let job = |version| Job {
+            version,
+            level: 0,
+            pass: 0,
+        };
         let progress = Arc::new(SweepProgress::default());
-        worker.send(frame(
-            Job {
-                version: 1,
-                level: 0,
-                pass: 0,
-            },
-            &later,
-            (32, 24),
-            false,
-            &progress,
-        ));
+        worker.send(frame(job(1), &later, (32, 24), false, &progress));
         let mut bars = None;
         let image = loop {
             match worker.replies.recv_timeout(Duration::from_secs(120)).expect("a reply") {
@@ -439,12 +434,7 @@ mod tests {
         let mut broken = scene.clone();
         broken.volume.set_frame(2);
         for version in [2, 3] {
-            let job = Job {
-                version,
-                level: 0,
-                pass: 0,
-            };
-            worker.send(frame(job, &broken, (32, 24), false, &progress));
+            worker.send(frame(job(version), &broken, (32, 24), false, &progress));
             match worker.replies.recv_timeout(Duration::from_secs(120)).expect("a reply") {
                 Reply::Failed { message, .. } => assert!(message.contains("t2.nrrd"), "{message}"),
                 _ => panic!("frame 2 is broken, yet the request did not fail"),
