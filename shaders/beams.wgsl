@@ -313,12 +313,44 @@ fn light_tile_goes_on(t: u32, k: u32, last: u32) -> bool {
     return true;
 }
 
+// Whether every beam's state on plane k-1 is in half (k-1) % 2 of `beam_state` and
+// `beam_power` whether or not its tile was stepped on that plane, so that every listed tile
+// is stepped as `LIGHT_LISTED`: where beams keep their cells (nothing bends them) and read
+// their neighbours' light (the soft light). A tile not stepped yet holds `beams_init`'s state
+// in both halves, the state it would have had (`pre_entry_beam`: nothing changes a beam in
+// front of the volume); a tile that ends has its last state copied to the other half
+// (`freeze_beam`), the state `load_stored_beam` finds for it. On a CPU driver the second
+// light dispatch of a plane, the tiles at the edge's, then has work only on the planes where
+// tiles end.
+fn halves_hold_state() -> bool {
+    return BEAMS && LIGHT_FILTER && !REFRACTION && !SCATTER && !LBM;
+}
+
+// Beam ij of a light tile that ends from plane k on (`halves_hold_state`; listed for
+// `LIGHT_EDGE` on plane k by `tiles_main`): its state of plane k-1, its last step, copied to
+// the other half, which the light passes of plane k+1 on read. Nothing writes the tile's beams
+// any more, and on plane k the other tiles' steps read only the half it copies from. One
+// invocation per beam: the listing's one per tile would copy a tile's beams in turn, which
+// took a CPU driver about 25 ms at 512².
+fn freeze_beam(ij: vec2<u32>, k: u32) {
+    if (ij.x >= P.beam_grid.x || ij.y >= P.beam_grid.y) {
+        return;
+    }
+    let last = (k - 1u) % 2u;
+    store_beam_texel(ij, BEAM_AUX, 1u - last, beam_texel(ij, BEAM_AUX, last));
+    store_beam_power(1u - last, ij, load_beam_power(last, ij));
+}
+
 // Whether light tile t's beams and all they read were stepped on plane k-1, the tile being
-// stepped on plane k (on plane 1 every beam read is plane 0's, stored for all); else it is
-// listed for `LIGHT_EDGE`. Where a beam's step reads no other beam (`dark_tiles_end`), its
-// own tile's steps are all that count. The ends read are those of the listing before plane
-// k, or (an end written meanwhile for another tile, when listing for plane k itself) k.
+// stepped on plane k (on plane 1 every beam read is plane 0's, stored for all), or hold that
+// plane's state all the same (`halves_hold_state`); else it is listed for `LIGHT_EDGE`.
+// Where a beam's step reads no other beam (`dark_tiles_end`), its own tile's steps are all
+// that count. The ends read are those of the listing before plane k, or (an end written
+// meanwhile for another tile, when listing for plane k itself) k.
 fn light_tile_current(t: u32, k: u32) -> bool {
+    if (halves_hold_state()) {
+        return true;
+    }
     var current = k == 1u || k != light_start[t].y;
     if (k == 1u || dark_tiles_end()) {
         return current;

@@ -72,6 +72,16 @@ fn light_edge_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocati
         beams_steps(tile * TILE + vec2<u32>(li % TILE, li / TILE), k, last, t);
         return;
     }
+    if (halves_hold_state()) {
+        // No tile is stepped at the edge: the edge list holds the tiles that end on this
+        // plane, whose beams keep their last state in both halves.
+        let k = dispatch_plane(wg);
+        let group = wg.y * P.tiles.z + wg.x;
+        let t = light_lists[light_list_slot(I.view_list % 2u, I.view_steps, 1u) * P.beam_grid.w + group];
+        let tile = vec2<u32>(t % P.beam_grid.z, t / P.beam_grid.z);
+        freeze_beam(tile * TILE + vec2<u32>(li % TILE, li / TILE), k);
+        return;
+    }
     light_listed(wg, li, LIGHT_EDGE);
 }
 
@@ -146,6 +156,12 @@ fn tiles_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_in
             // The ends, written once (a CPU driver runs every branch a workgroup takes, so a
             // call in each would test the tile as many times).
             let goes_on = light_tile_goes_on(lt, k + 1u, k + next);
+            if (halves_hold_state() && !goes_on && lt < P.beam_grid.w
+                && atomicLoad(&light_end[lt]) == k + 1u) {
+                // Ended from plane k+1 on: its state copied to the other half on that plane
+                // (`freeze_beam`, the edge pass).
+                append_light_tile(lt, light_list_slot(parity, 0u, 1u));
+            }
             if (light_groups()) {
                 // One list: a dispatch steps the tiles over all the planes.
                 if (goes_on) {
