@@ -321,9 +321,9 @@ fn light_tile_goes_on(t: u32, k: u32, last: u32) -> bool {
 // front of the volume); a tile that ends has its last state copied to the other half
 // (`freeze_beam`), the state `load_stored_beam` finds for it. On a CPU driver the second
 // light dispatch of a plane, the tiles at the edge's, then has work only on the planes where
-// tiles end.
+// tiles end. `LIGHT_EDGE_STEPS` steps those tiles at the edge instead, with the same light.
 fn halves_hold_state() -> bool {
-    return BEAMS && LIGHT_FILTER && !REFRACTION && !SCATTER && !LBM;
+    return BEAMS && LIGHT_FILTER && !REFRACTION && !SCATTER && !LBM && !LIGHT_EDGE_STEPS;
 }
 
 // Beam ij of a light tile that ends from plane k on (`halves_hold_state`; listed for

@@ -61,6 +61,11 @@ override LIGHT_GROUPS: bool = false;
 // window's, which it would otherwise also run, masked, in every listing.
 override LIGHT_LISTS: bool = false;
 
+// The soft light's tiles next to tiles not started yet or ended are stepped at the edge
+// instead of from the plane's half of the state (`halves_hold_state` in beams.wgsl): the same
+// light, for the tests that compare the two. A constant, as LIGHT_GROUPS is.
+override LIGHT_EDGE_STEPS: bool = false;
+
 fn guarded(bit: u32) -> bool {
     return (SAFEGUARDS_OFF & bit) == 0u;
 }

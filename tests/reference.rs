@@ -347,6 +347,18 @@ fn light_no_view_ray_can_read_stops_and_the_image_keeps_its_bits() {
             stopped.image.pixels == kept.image.pixels,
             "soft light {soft}: the image changed where light was stopped"
         );
+        if soft {
+            // The tiles next to the ended ones (and to those not started yet) read their
+            // neighbours from the plane's half, which the ended tiles' copies fill: the same
+            // light as stepping them at the edge, where each read finds the newer half.
+            let mut req = RenderRequest::new(SIZE, SIZE);
+            req.light_edge_steps = true;
+            let edge = gpu.render(&p, &req);
+            assert!(
+                stopped.image.pixels == edge.image.pixels,
+                "soft light: the image changed with the tiles beside ended ones stepped at the edge"
+            );
+        }
         // Measured 0.79 (hard light) and 0.76 (soft light: the tiles beside the seen ones go
         // on) in tiles of 4 × 4, 0.77 and 0.80 in tiles of 8 × 8; without the rule the counts
         // are equal, so 0.9 separates them with room for the tiles' rounding at the wall's
@@ -361,6 +373,39 @@ fn light_no_view_ray_can_read_stops_and_the_image_keeps_its_bits() {
 }
 
 /// `blobs` over a box of unequal sides and voxels, so that one axis taken for another shows.
+#[test]
+fn soft_light_beside_tiles_not_started_reads_the_light_the_edge_steps_gave() {
+    // A blob in the middle of the box, lit at 60° to the view: the light tiles start on many
+    // planes (each from shortly before its beams near the blob), and the tiles beside those
+    // not started yet carry that light to the blob. A tile is stepped from the plane's half
+    // of the state even there: the tiles not started hold `beams_init`'s state in both halves
+    // (and a tile that ends its last state, copied on the plane it ends from). Stepped at the
+    // edge instead, where each read finds the state before the volume or the newer half, the
+    // image has the same bits. A wrong state of the tiles not started changes it here
+    // (measured with half 1 initialised to 0.99: at 35° the same blob showed nothing); the
+    // ended tiles' light reaches no seen pixel (the ring of beams around an ended tile keeps
+    // it off), so their copy is checked in the state rather than in any image.
+    let mut gpu = Gpu::new();
+    let blob = volume_from(48, |x, y, z| {
+        (-((x - 0.5).powi(2) + (y - 0.5).powi(2) + (z - 0.5).powi(2)) / 0.005).exp()
+    });
+    let mut scene = head_on_scene(&tf());
+    scene.light.polar_deg = 60.0;
+    scene.light.azimuth_deg = -40.0;
+    scene.light.softness = 0.05;
+    scene.quality.light_filter = true;
+    let p = prepared(scene, blob, tf());
+    let listed = gpu.render(&p, &RenderRequest::new(SIZE, SIZE));
+    let mut req = RenderRequest::new(SIZE, SIZE);
+    req.light_edge_steps = true;
+    let edge = gpu.render(&p, &req);
+    assert!(listed.stats.light_steps.is_some(), "light tiles are listed");
+    assert!(
+        listed.image.pixels == edge.image.pixels,
+        "the soft light's image changed with the tiles beside those not started or ended stepped at the edge"
+    );
+}
+
 fn blobs_in_a_box() -> caustica::volume::Volume {
     let dims = [40, 32, 24];
     let mut data = Vec::with_capacity(dims.iter().product());

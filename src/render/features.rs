@@ -173,6 +173,7 @@ impl Features {
             ("BACK_PLANES", 1.0),
             ("LIGHT_GROUPS", 0.0),
             ("LIGHT_LISTS", 0.0),
+            ("LIGHT_EDGE_STEPS", 0.0),
         ]
     }
 

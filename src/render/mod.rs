@@ -114,6 +114,12 @@ pub struct RenderRequest {
     /// only: false in every real render.
     #[doc(hidden)]
     pub step_empty_view_tiles: bool,
+    /// Step the soft light's tiles next to tiles not started yet or ended at the edge, each
+    /// neighbour read finding its beam's newer half, instead of keeping every beam's state
+    /// in the plane's half (`halves_hold_state` in beams.wgsl): the same image to the bit.
+    /// Tests only: false in every real render.
+    #[doc(hidden)]
+    pub light_edge_steps: bool,
     /// Step the light one dispatch per plane where a dispatch could take the planes up to the
     /// next view pass (beams that read no other beam: the same image to the bit). Tests only:
     /// false in every real render.
@@ -207,6 +213,7 @@ impl RenderRequest {
             view_planes: 0,
             keep_unseen_light: false,
             step_empty_view_tiles: false,
+            light_edge_steps: false,
             per_plane_light: false,
             gpu_tiles: false,
             power_in_pairs: false,
@@ -435,8 +442,8 @@ struct PipelineKey {
     debug: DebugView,
     safeguards_off: u32,
     /// The tiles' side, the planes a view sample reads the beams back from and how the light
-    /// tiles are listed and stepped (the `TILE`, `BACK_PLANES`, `LIGHT_LISTS` and
-    /// `LIGHT_GROUPS` overrides; `state::plan`).
+    /// tiles are listed and stepped (the `TILE`, `BACK_PLANES`, `LIGHT_LISTS`,
+    /// `LIGHT_GROUPS` and `LIGHT_EDGE_STEPS` overrides; `state::plan`).
     spec: state::Specialisation,
 }
 
@@ -464,6 +471,7 @@ fn compile(
                 "BACK_PLANES" => c.1 = key.spec.back_planes as f64,
                 "LIGHT_GROUPS" => c.1 = f64::from(u8::from(key.spec.light_groups)),
                 "LIGHT_LISTS" => c.1 = f64::from(u8::from(key.spec.light_lists)),
+                "LIGHT_EDGE_STEPS" => c.1 = f64::from(u8::from(key.spec.light_edge_steps)),
                 _ => {}
             }
         }

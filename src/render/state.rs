@@ -820,6 +820,9 @@ pub(super) struct Specialisation {
     /// The listed light tiles are stepped over a view pass's planes in one dispatch (the
     /// `LIGHT_GROUPS` override; `Layout::light_groups`).
     pub light_groups: bool,
+    /// The soft light's tiles next to tiles not started or ended are stepped at the edge (the
+    /// `LIGHT_EDGE_STEPS` override; `RenderRequest::light_edge_steps`).
+    pub light_edge_steps: bool,
 }
 
 /// A render's view and light grid and the specialisation of its sweep, worked out before
@@ -844,6 +847,7 @@ pub(super) fn plan(ctx: &Context, prepared: &PreparedScene, req: &RenderRequest,
         back_planes,
         light_lists: false,
         light_groups: false,
+        light_edge_steps: req.light_edge_steps,
     };
     if req.width == 0 || req.height == 0 {
         let geometry = Err(RenderError::Setup("an empty image has no view".into()));
