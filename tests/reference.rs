@@ -349,8 +349,8 @@ fn light_no_view_ray_can_read_stops_and_the_image_keeps_its_bits() {
         );
         if soft {
             // The tiles next to the ended ones (and to those not started yet) read their
-            // neighbours from the plane's half, which the ended tiles' copies fill: the same
-            // light as stepping them at the edge, where each read finds the newer half.
+            // neighbours from the plane's half, which the ended tiles' copies fill, instead of
+            // being stepped at the edge, where each read finds the newer half: the same image.
             let mut req = RenderRequest::new(SIZE, SIZE);
             req.light_edge_steps = true;
             let edge = gpu.render(&p, &req);
@@ -372,7 +372,6 @@ fn light_no_view_ray_can_read_stops_and_the_image_keeps_its_bits() {
     }
 }
 
-/// `blobs` over a box of unequal sides and voxels, so that one axis taken for another shows.
 #[test]
 fn soft_light_beside_tiles_not_started_reads_the_light_the_edge_steps_gave() {
     // A blob in the middle of the box, lit at 60° to the view: the light tiles start on many
@@ -384,7 +383,7 @@ fn soft_light_beside_tiles_not_started_reads_the_light_the_edge_steps_gave() {
     // image has the same bits. A wrong state of the tiles not started changes it here
     // (measured with half 1 initialised to 0.99: at 35° the same blob showed nothing); the
     // ended tiles' light reaches no seen pixel (the ring of beams around an ended tile keeps
-    // it off), so their copy is checked in the state rather than in any image.
+    // it off), so no image, this one included, shows whether their copy is right.
     let mut gpu = Gpu::new();
     let blob = volume_from(48, |x, y, z| {
         (-((x - 0.5).powi(2) + (y - 0.5).powi(2) + (z - 0.5).powi(2)) / 0.005).exp()
@@ -406,6 +405,7 @@ fn soft_light_beside_tiles_not_started_reads_the_light_the_edge_steps_gave() {
     );
 }
 
+/// `blobs` over a box of unequal sides and voxels, so that one axis taken for another shows.
 fn blobs_in_a_box() -> caustica::volume::Volume {
     let dims = [40, 32, 24];
     let mut data = Vec::with_capacity(dims.iter().product());
