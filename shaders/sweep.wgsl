@@ -42,12 +42,22 @@ fn light_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_in
 // plane k, the plane view_steps of the view pass view_list, one per workgroup (indirect,
 // `list_light_tile`).
 fn light_listed(wg: vec3<u32>, li: u32, list: u32) {
-    let k = dispatch_plane(wg);
+    let t = light_list_tile(wg, list);
+    beams_step(light_tile_beam(t, li), dispatch_plane(wg), t, list);
+}
+
+// The light tile of workgroup wg in list `list` (LIGHT_LISTED or LIGHT_EDGE) of the plane
+// view_steps of the view pass view_list.
+fn light_list_tile(wg: vec3<u32>, list: u32) -> u32 {
     let group = wg.y * P.tiles.z + wg.x;
     let slot = light_list_slot(I.view_list % 2u, I.view_steps, list - LIGHT_LISTED);
-    let t = light_lists[slot * P.beam_grid.w + group];
+    return light_lists[slot * P.beam_grid.w + group];
+}
+
+// Beam `li` (row by row) of light tile t.
+fn light_tile_beam(t: u32, li: u32) -> vec2<u32> {
     let tile = vec2<u32>(t % P.beam_grid.z, t / P.beam_grid.z);
-    beams_step(tile * TILE + vec2<u32>(li % TILE, li / TILE), k, t, list);
+    return tile * TILE + vec2<u32>(li % TILE, li / TILE);
 }
 
 @compute @workgroup_size(TILE * TILE, 1, 1)
@@ -67,19 +77,14 @@ fn light_edge_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocati
         let k = dispatch_plane(wg);
         let group = wg.y * P.tiles.z + wg.x;
         let t = light_lists[light_list_slot(I.view_list % 2u, 0u, 0u) * P.beam_grid.w + group];
-        let tile = vec2<u32>(t % P.beam_grid.z, t / P.beam_grid.z);
         let last = min(k + I.view_steps - 1u, u32(P.plane.z) - 1u);
-        beams_steps(tile * TILE + vec2<u32>(li % TILE, li / TILE), k, last, t);
+        beams_steps(light_tile_beam(t, li), k, last, t);
         return;
     }
     if (halves_hold_state()) {
         // No tile is stepped at the edge: the edge list holds the tiles that end on this
         // plane, whose beams keep their last state in both halves.
-        let k = dispatch_plane(wg);
-        let group = wg.y * P.tiles.z + wg.x;
-        let t = light_lists[light_list_slot(I.view_list % 2u, I.view_steps, 1u) * P.beam_grid.w + group];
-        let tile = vec2<u32>(t % P.beam_grid.z, t / P.beam_grid.z);
-        freeze_beam(tile * TILE + vec2<u32>(li % TILE, li / TILE), k);
+        freeze_beam(light_tile_beam(light_list_tile(wg, LIGHT_EDGE), li), dispatch_plane(wg));
         return;
     }
     light_listed(wg, li, LIGHT_EDGE);
