@@ -517,12 +517,24 @@ fn reaches_box(p: vec3<f32>, d: vec3<f32>, extra: f32) -> bool {
 
 // Stores beam ij's state on plane `plane` in half `half` (the plane in aux.w: with light
 // tiles listed a beam not stepped on a plane is found in the other half, or not at all).
+// Unrefracted beams' power is written only where its bits change (`update_beam_power`);
+// refracted beams are stepped where they bend or absorb, and their power changes on most of
+// their steps. Where the halves hold every beam's state of their plane (`halves_hold_state`)
+// nothing reads aux.w, and aux is not written either unless v.z, the data value or the shadow
+// depth changes: its plane is then the last one on which they changed.
 fn store_beam(ij: vec2<u32>, half: u32, plane: u32, b: Beam) {
+    let aux = vec4<f32>(b.v.z, b.value, b.shadow, f32(plane));
     if (REFRACTION) {
         store_beam_texel(ij, BEAM_POS, half, vec4<f32>(b.pos.xy, b.v.xy));
+        store_beam_texel(ij, BEAM_AUX, half, aux);
+        store_beam_power(half, ij, b.power);
+        return;
     }
-    store_beam_texel(ij, BEAM_AUX, half, vec4<f32>(b.v.z, b.value, b.shadow, f32(plane)));
-    store_beam_power(half, ij, b.power);
+    if (!halves_hold_state()
+        || any(bitcast<vec3<u32>>(beam_texel(ij, BEAM_AUX, half).xyz) != bitcast<vec3<u32>>(aux.xyz))) {
+        store_beam_texel(ij, BEAM_AUX, half, aux);
+    }
+    update_beam_power(half, ij, b.power);
 }
 
 // Position on the plane at depth z of a beam last seen at `pos` with direction `v`: the
@@ -1102,10 +1114,12 @@ fn beams_step(ij: vec2<u32>, k: u32, tile: u32, mode: u32) {
         b.shadow = f.w;
     }
 
-    if (!REFRACTION || refracted_power_ring()) {
+    if (!REFRACTION) {
+        update_beam_power(front_power_region(k), ij, front);
+    } else if (refracted_power_ring()) {
         store_beam_power(front_power_region(k), ij, front);
         // Not stepped on plane k-1 (read before this step stores its own state).
-        let fresh = REFRACTION && !current && u32(beam_texel(ij, BEAM_AUX, (k - 1u) % 2u).w) != k - 1u;
+        let fresh = !current && u32(beam_texel(ij, BEAM_AUX, (k - 1u) % 2u).w) != k - 1u;
         if (fresh) {
             // The beam's first step: before it nothing had changed its power (its tile is
             // stepped from where its light can change), so it had this on the planes its
@@ -1192,7 +1206,7 @@ fn beams_steps(ij: vec2<u32>, a: u32, last: u32, tile: u32) {
         b.pos = drift(b.pos, b.v, z);
         let front = b.power;
         _ = attenuate(&b, x0, z);
-        store_beam_power(front_power_region(k), ij, front);
+        update_beam_power(front_power_region(k), ij, front);
         if (max(front.r, max(front.g, front.b)) > 0.0) {
             lit = k;
         }

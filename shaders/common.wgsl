@@ -389,6 +389,28 @@ fn store_beam_power(region: u32, ij: vec2<u32>, v: vec3<f32>) {
     textureStore(beam_power, t, i32(layer), vec4<u32>(pack2x16float(v.xy), pack2x16float(vec2<f32>(v.z, 0.0)), 0u, 0u));
 }
 
+// As `store_beam_power`, but the texels are written only where their bits change: a CPU
+// driver stores a texel lane by lane and word by word, and a beam's power often stays as it
+// was (full in clear air, zero in a deep shadow), where the region's texel already holds it.
+// The memory ends up the same either way; the load costs little (gathered for all lanes).
+fn update_beam_power(region: u32, ij: vec2<u32>, v: vec3<f32>) {
+    let t = beam_power_texel(ij, region);
+    let layer = beam_power_layer(region);
+    if (F32_STATE) {
+        let a = vec2<u32>(bitcast<u32>(v.x), bitcast<u32>(v.y));
+        let b = bitcast<u32>(v.z);
+        if (any(textureLoad(beam_power, t, i32(2u * layer)).xy != a)
+            || textureLoad(beam_power, t, i32(2u * layer + 1u)).x != b) {
+            store_beam_power(region, ij, v);
+        }
+        return;
+    }
+    let w = vec2<u32>(pack2x16float(v.xy), pack2x16float(vec2<f32>(v.z, 0.0)));
+    if (any(textureLoad(beam_power, t, i32(layer)).xy != w)) {
+        textureStore(beam_power, t, i32(layer), vec4<u32>(w, 0u, 0u));
+    }
+}
+
 fn load_back_light(i: u32) -> vec4<f32> {
     if (F32_STATE) {
         let b = i * 4u;
