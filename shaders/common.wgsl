@@ -392,7 +392,8 @@ fn store_beam_power(region: u32, ij: vec2<u32>, v: vec3<f32>) {
 // As `store_beam_power`, but the texels are written only where their bits change: a CPU
 // driver stores a texel lane by lane and word by word, and a beam's power often stays as it
 // was (full in clear air, zero in a deep shadow), where the region's texel already holds it.
-// The memory ends up the same either way; the load costs little (gathered for all lanes).
+// The words that are read end up the same either way; the load costs little (gathered for
+// all lanes).
 fn update_beam_power(region: u32, ij: vec2<u32>, v: vec3<f32>) {
     let t = beam_power_texel(ij, region);
     let layer = beam_power_layer(region);

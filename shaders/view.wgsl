@@ -271,12 +271,13 @@ fn load_view(px: vec2<u32>) -> ViewRay {
     return r;
 }
 
-// Stores the ray's state r, whose state was `before`: the colour and the medium's
-// transmittance only where they changed (they stay put across empty space and clear medium;
-// a CPU driver stores each word of a texel lane by lane, which is most of what a view step
-// costs there). What was loaded is what a store of the same values would write back. The
-// comparison is on the bits: a float comparison is false for a NaN, which would then never
-// reach the image and hide the fault that made it.
+// Stores the ray's state r, whose state was `before`: the colour, the medium's transmittance
+// and the light only where they changed (they stay put across empty space and clear medium,
+// the light full in clear air and zero deep in a shadow; a CPU driver stores each word of a
+// texel lane by lane, which is most of what a view step costs there). What was loaded is
+// what a store of the same values would write back. The comparison is on the bits: a float
+// comparison is false for a NaN, which would then never reach the image and hide the fault
+// that made it.
 fn store_view(px: vec2<u32>, r: ViewRay, before: ViewRay) {
     store_view_aux(px, r.aux);
     if (REFRACTION) {
@@ -288,7 +289,9 @@ fn store_view(px: vec2<u32>, r: ViewRay, before: ViewRay) {
     if (MEDIUM && any(bitcast<vec3<u32>>(r.medium) != bitcast<vec3<u32>>(before.medium))) {
         store_view_shade(px, VIEW_MEDIUM, vec4<f32>(r.medium, 1.0));
     }
-    store_view_shade(px, VIEW_LIGHT, vec4<f32>(r.light, 0.0));
+    if (any(bitcast<vec3<u32>>(r.light) != bitcast<vec3<u32>>(before.light))) {
+        store_view_shade(px, VIEW_LIGHT, vec4<f32>(r.light, 0.0));
+    }
 }
 
 // One segment from plane k-1 to plane k of pixel px's ray (in rect tile `tile`).
