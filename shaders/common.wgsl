@@ -378,37 +378,48 @@ fn load_beam_power(region: u32, ij: vec2<u32>) -> vec3<f32> {
     return vec4<f32>(unpack2x16float(a.x), unpack2x16float(a.y)).rgb;
 }
 
-fn store_beam_power(region: u32, ij: vec2<u32>, v: vec3<f32>) {
-    let t = beam_power_texel(ij, region);
-    let layer = beam_power_layer(region);
+// Beam power v as the words `beam_power` holds it: f16 rgb packed in two (the third 0), or
+// with F32_STATE the bits of each f32.
+fn beam_power_words(v: vec3<f32>) -> vec3<u32> {
     if (F32_STATE) {
-        textureStore(beam_power, t, i32(2u * layer), vec4<u32>(bitcast<u32>(v.x), bitcast<u32>(v.y), 0u, 0u));
-        textureStore(beam_power, t, i32(2u * layer + 1u), vec4<u32>(bitcast<u32>(v.z), 0u, 0u, 0u));
+        return bitcast<vec3<u32>>(v);
+    }
+    return vec3<u32>(pack2x16float(v.xy), pack2x16float(vec2<f32>(v.z, 0.0)), 0u);
+}
+
+fn store_beam_power(region: u32, ij: vec2<u32>, v: vec3<f32>) {
+    store_beam_power_words(beam_power_texel(ij, region), beam_power_layer(region), beam_power_words(v));
+}
+
+// Writes the words w (`beam_power_words`) at texel t of layer `layer` (`beam_power_texel`,
+// `beam_power_layer`).
+fn store_beam_power_words(t: vec2<i32>, layer: u32, w: vec3<u32>) {
+    if (F32_STATE) {
+        textureStore(beam_power, t, i32(2u * layer), vec4<u32>(w.xy, 0u, 0u));
+        textureStore(beam_power, t, i32(2u * layer + 1u), vec4<u32>(w.z, 0u, 0u, 0u));
         return;
     }
-    textureStore(beam_power, t, i32(layer), vec4<u32>(pack2x16float(v.xy), pack2x16float(vec2<f32>(v.z, 0.0)), 0u, 0u));
+    textureStore(beam_power, t, i32(layer), vec4<u32>(w.xy, 0u, 0u));
 }
 
 // As `store_beam_power`, but the texels are written only where their bits change: a CPU
 // driver stores a texel lane by lane and word by word, and a beam's power often stays as it
 // was (full in clear air, zero in a deep shadow), where the region's texel already holds it.
-// The words that are read end up the same either way; the load costs little (gathered for
-// all lanes).
+// The words that are read (`load_beam_power`) end up the same either way; the load costs
+// little (gathered for all lanes).
 fn update_beam_power(region: u32, ij: vec2<u32>, v: vec3<f32>) {
     let t = beam_power_texel(ij, region);
     let layer = beam_power_layer(region);
+    let w = beam_power_words(v);
+    var changed: bool;
     if (F32_STATE) {
-        let a = vec2<u32>(bitcast<u32>(v.x), bitcast<u32>(v.y));
-        let b = bitcast<u32>(v.z);
-        if (any(textureLoad(beam_power, t, i32(2u * layer)).xy != a)
-            || textureLoad(beam_power, t, i32(2u * layer + 1u)).x != b) {
-            store_beam_power(region, ij, v);
-        }
-        return;
+        changed = any(textureLoad(beam_power, t, i32(2u * layer)).xy != w.xy)
+            || textureLoad(beam_power, t, i32(2u * layer + 1u)).x != w.z;
+    } else {
+        changed = any(textureLoad(beam_power, t, i32(layer)).xy != w.xy);
     }
-    let w = vec2<u32>(pack2x16float(v.xy), pack2x16float(vec2<f32>(v.z, 0.0)));
-    if (any(textureLoad(beam_power, t, i32(layer)).xy != w)) {
-        textureStore(beam_power, t, i32(layer), vec4<u32>(w, 0u, 0u));
+    if (changed) {
+        store_beam_power_words(t, layer, w);
     }
 }
 
