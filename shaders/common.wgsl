@@ -182,10 +182,12 @@ const VIEW_MEDIUM: u32 = 2u;
 // Forward beams: two texels per beam of the beam_grid.x × beam_grid.y grid at its slot
 // (`beam_slot`), one per half (plane parity), side by side (`beam_pair_texel`): layer 0
 // holds v.z, the data value, the shadow depth and the plane stored on (`BEAM_AUX`), layer 1
-// with refraction x, y on the plane and v.x, v.y (`BEAM_POS`). An image, not a buffer: a CPU
-// driver fetches texels for all invocations at once, while it loads a storage buffer inside
-// a branch invocation by invocation and component by component (the neighbours' records
-// are read inside one).
+// with refraction x, y on the plane and v.x, v.y (`BEAM_POS`). Where the halves hold every
+// beam's state (`power_in_aux`), the aux texel's first and last words hold the beam's f16
+// power instead of v.z and the plane (`aux_power_words`). An image, not a buffer: a CPU driver
+// fetches texels for all invocations at once, while it loads a storage buffer inside a
+// branch invocation by invocation and component by component (the neighbours' records are
+// read inside one).
 @group(0) @binding(14) var beam_state: texture_storage_2d_array<rgba32float, read_write>;
 // Beam ij's slot in the beams' images (x: the slot in its row, y: the row). With refraction
 // the TILE × TILE beams of a light tile one after another, row by row, and the tiles in order,
@@ -349,7 +351,9 @@ fn store_view_shade(px: vec2<u32>, item: u32, v: vec4<f32>) {
 // (P.sweep.y 0), regions 2r and 2r + 1 side by side in the layers of pair r
 // (`beam_pair_texel`). In records, a step's store of the power before its segment
 // (`front_power_region`) shares the cache line of the half it reads and writes; in pairs it
-// found a line last touched a ring's length of planes before.
+// found a line last touched a ring's length of planes before. Where the halves hold every
+// beam's state (`power_in_aux`), the halves' power (regions 0 and 1) is kept in the beam's aux
+// texel instead, and those regions of `beam_power` are not used.
 fn beam_power_texel(ij: vec2<u32>, region: u32) -> vec2<i32> {
     if (P.sweep.y > 0u) {
         let s = beam_slot(ij);
@@ -366,7 +370,9 @@ fn beam_power_layer(region: u32) -> u32 {
     return region / 2u;
 }
 
-fn load_beam_power(region: u32, ij: vec2<u32>) -> vec3<f32> {
+// The power `beam_power` holds for beam ij in region `region` (`load_beam_power` in
+// beams.wgsl reads a beam's power wherever it is kept).
+fn load_power_texel(region: u32, ij: vec2<u32>) -> vec3<f32> {
     let t = beam_power_texel(ij, region);
     let layer = beam_power_layer(region);
     if (F32_STATE) {

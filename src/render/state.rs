@@ -309,7 +309,7 @@ impl Layout {
         read + self.back_planes
     }
 
-    /// Regions of the beams' power (`load_beam_power` in common.wgsl): the two halves, and
+    /// Regions of the beams' power (`load_beam_power` in beams.wgsl): the two halves, and
     /// the power before the segment to each of the planes kept (`front_planes`), but for
     /// refracted beams that deposit what they carry on the plane (a voxel is one plane).
     fn power_regions(&self) -> u32 {
