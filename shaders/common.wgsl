@@ -353,7 +353,8 @@ fn store_view_shade(px: vec2<u32>, item: u32, v: vec4<f32>) {
 // (`front_power_region`) shares the cache line of the half it reads and writes; in pairs it
 // found a line last touched a ring's length of planes before. Where the halves hold every
 // beam's state (`power_in_aux`), the halves' power (regions 0 and 1) is kept in the beam's aux
-// texel instead, and those regions of `beam_power` are not used.
+// texel instead, and `beam_power` holds only the regions after them (`power_slot` in
+// beams.wgsl).
 fn beam_power_texel(ij: vec2<u32>, region: u32) -> vec2<i32> {
     if (P.sweep.y > 0u) {
         let s = beam_slot(ij);

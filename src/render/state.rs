@@ -148,6 +148,9 @@ struct Layout {
     /// Keep the beams' power in pairs of regions even where records fit
     /// (`RenderRequest::power_in_pairs`).
     power_in_pairs: bool,
+    /// The halves' power is kept in the beams' aux texels (`power_in_aux`): `beam_power`
+    /// holds only the power before each segment.
+    power_in_aux: bool,
 }
 
 impl Layout {
@@ -174,6 +177,7 @@ impl Layout {
             back_planes: 1,
             max_image_side: u32::MAX,
             power_in_pairs: false,
+            power_in_aux: false,
         }
     }
 }
@@ -294,6 +298,22 @@ fn deposit_levels(features: &Features) -> u32 {
     }
 }
 
+/// Whether the beams keep the halves' power in their aux texels rather than in `beam_power`
+/// (`power_in_aux` in beams.wgsl, from the same overrides: beams that keep their cells and
+/// exchange light, the soft light, with every beam's state in the halves and f16 state).
+/// `beam_power` then holds only the power before each segment, 2 regions fewer: the soft
+/// light's state for the CT head of `compare.sh` 12.1 → 10.9 MiB at 256², 47.6 → 45.8 MiB at
+/// 1024².
+fn power_in_aux(features: &Features, precision: Precision, light_edge_steps: bool) -> bool {
+    features.transport == LightTransport::Beams
+        && features.light_filter
+        && !features.refraction
+        && !features.scatter
+        && !features.lbm
+        && !light_edge_steps
+        && precision != Precision::F32
+}
+
 /// Whether the beams deposit their light in the ring `light_acc` (refraction, the spread
 /// mode's scattered light).
 fn deposit_ring(features: &Features) -> bool {
@@ -312,9 +332,13 @@ impl Layout {
     /// Regions of the beams' power (`load_beam_power` in beams.wgsl): the two halves, and
     /// the power before the segment to each of the planes kept (`front_planes`), but for
     /// refracted beams that deposit what they carry on the plane (a voxel is one plane).
+    /// Where the aux texels hold the halves' power (`power_in_aux`), only the planes kept
+    /// (`power_slot` in beams.wgsl).
     fn power_regions(&self) -> u32 {
         if self.refraction && self.back_planes == 1 {
             2
+        } else if self.power_in_aux {
+            self.front_planes()
         } else {
             2 + self.front_planes()
         }
@@ -689,8 +713,8 @@ impl State {
         // side by side along x (`beam_pair_texel`). The beams' records: v.z, data value, shadow
         // depth and plane in the two halves, and with refraction position and v.xy. Their power
         // by region (the two halves, and each beam's power on the planes before: the view reads
-        // the unrefracted beams', refracted ones deposit theirs a voxel back), f16 rgb in one
-        // layer or f32 in two: a record of a beam's regions side by side, or where a row of
+        // the unrefracted beams', refracted ones deposit theirs a voxel back; the halves' not
+        // where the aux texels hold it, `power_in_aux`), f16 rgb in one layer or f32 in two: a record of a beam's regions side by side, or where a row of
         // records (with refraction, of a tile's) is too wide, two regions to a layer
         // (`Layout::power_records`). The spread mode's five texels per beam and half. The view
         // rays' aux and (with refraction) position and direction; their colour, light and
@@ -943,6 +967,7 @@ pub(super) fn run(
     layout.unseen_light_ends = !req.keep_unseen_light;
     layout.skip_empty_view_tiles = !req.step_empty_view_tiles;
     layout.refraction = features.refraction;
+    layout.power_in_aux = power_in_aux(&features, precision, spec.light_edge_steps);
     let levels = deposit_levels(&features);
     layout.deposits = DepositLayout::packed(&view.rect, levels);
     if features.deposit_image {
