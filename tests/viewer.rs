@@ -745,3 +745,71 @@ fn close_button_during_refinement_shuts_down_cleanly() {
     drop(x);
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// The interactive level keeps within `--frame-budget`: where its frames take longer, its
+/// planes move apart (up to 16 voxels from the 6 it starts at), while the budget leaves the
+/// other levels alone and 0 keeps the interactive planes where they start.
+#[test]
+fn interactive_frames_move_their_planes_apart_to_keep_within_the_frame_budget() {
+    let x = Xvfb::start();
+    let run = |budget: &str| -> (Vec<u32>, Vec<u32>) {
+        let out = caustica(
+            &[
+                "view",
+                "--scene",
+                "ball-lens",
+                "--resolution",
+                "32",
+                "--size",
+                "160x120",
+                "--no-panel",
+                "--exit-after-idle",
+                "--frame-log",
+                "--orbit-frames",
+                "6",
+                "--frame-budget",
+                budget,
+            ],
+            Some(&x.display),
+            Duration::from_secs(120),
+        );
+        let stderr = assert_ok(&out, "caustica view");
+        // `frame: LEVEL WxH N planes T ms`
+        let planes = |level: &str| -> Vec<u32> {
+            stderr
+                .lines()
+                .filter(|l| l.starts_with(&format!("frame: {level} ")))
+                .map(|l| {
+                    let w: Vec<&str> = l.split_whitespace().collect();
+                    let at = w.iter().position(|&t| t == "planes").expect("N planes");
+                    w[at - 1].parse().expect("a plane count")
+                })
+                .collect()
+        };
+        (planes("interactive"), planes("full"))
+    };
+    let (fixed, fixed_full) = run("0");
+    let (paced, paced_full) = run("0.001");
+    assert!(
+        fixed.len() >= 6 && paced.len() >= 6,
+        "interactive frames: {fixed:?}, {paced:?}"
+    );
+    // Without a budget the orbit alone moves the count (the volume's depth along the view).
+    let first = fixed[0] as f64;
+    assert!(
+        fixed.iter().all(|&n| (n as f64 - first).abs() <= 0.15 * first),
+        "planes moved without a budget: {fixed:?}"
+    );
+    // No frame fits 1 µs: after the first frames (one to copy the textures, two to go by)
+    // the planes are as far apart as they go, 6/16 of the count (the orbit's share aside).
+    assert_eq!(paced[0], fixed[0], "both start 6 voxels apart");
+    let last = *paced.last().unwrap() as f64;
+    assert!(
+        last <= 0.5 * first && last >= 0.25 * first,
+        "planes with a budget no frame fits: {paced:?} (without one {fixed:?})"
+    );
+    assert_eq!(
+        paced_full, fixed_full,
+        "the full frame is the scene's own quality either way"
+    );
+}

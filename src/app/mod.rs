@@ -110,6 +110,19 @@ pub struct ViewArgs {
     /// WIDTHxHEIGHT and refine again (before --screenshot and --exit-after-idle apply).
     #[arg(long, value_parser = parse_size)]
     pub resize_after_idle: Option<(u32, u32)>,
+    /// The time an interactive frame (while dragging) may take, in ms: its planes move apart
+    /// (from 6 voxels up to 16) or closer (down to 4) to keep the latest frames' median within
+    /// it. 0 keeps them 6 voxels apart.
+    #[arg(long, default_value_t = progressive::FRAME_BUDGET_MS, value_parser = parse_budget)]
+    pub frame_budget: f64,
+}
+
+/// A frame budget in ms: a finite number, 0 or more.
+fn parse_budget(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(ms) if ms.is_finite() && ms >= 0.0 => Ok(ms),
+        _ => Err(format!("'{s}' is not a time in ms (a number, 0 or more)")),
+    }
 }
 
 /// A window size: [`crate::input::parse_size`], at most 16384 on each side.
@@ -166,6 +179,7 @@ pub fn run(args: &ViewArgs) -> Result<(), ViewError> {
         save_scene: args.save_scene.clone(),
         frame_log: args.frame_log,
         orbit_frames: args.orbit_frames,
+        frame_budget_ms: args.frame_budget,
         resize_after_idle: args.resize_after_idle,
     };
     let mut app = window::App::new(state, worker, opts);

@@ -36,7 +36,8 @@ pub const LEVELS: [Level; 4] = [
     Level {
         name: "interactive",
         // 160×120 pixels' worth in any viewport (127×152 in the portrait viewport of a
-        // 1024×768 window with the panel), planes 6 voxels apart, a beam per 4 pixels and
+        // 1024×768 window with the panel), planes 6 voxels apart to start with (then as far
+        // apart as the frame budget needs: `Pace`), a beam per 4 pixels and
         // axis, from the half-resolution volume: 125–145 ms per frame on the CT head with
         // every effect on lavapipe with 2 cores. Its pixels and planes are several voxels
         // apart; at full resolution every trilinear fetch of the volumes lands on memory no
@@ -82,6 +83,98 @@ pub const LEVELS: [Level; 4] = [
 ];
 
 pub const FULL: usize = LEVELS.len() - 1;
+
+/// The spacings of the interactive level's planes [`Pace`] chooses from (factors on the
+/// scene's sample distance), finest first; it starts at `LEVELS[0].step_factor`. Finer than
+/// the draft's 4 would be wasted on the interactive level's few pixels; 16 is where the sample
+/// distance is capped.
+pub const INTERACTIVE_STEPS: [f32; 7] = [4.0, 5.0, 6.0, 8.0, 10.0, 12.0, 16.0];
+
+/// The time an interactive frame may take by default (`view --frame-budget`): with a fifth of
+/// headroom below the 150 ms within which a drag still feels direct.
+pub const FRAME_BUDGET_MS: f64 = 120.0;
+
+/// The latest interactive frames at one spacing whose median [`Pace`] goes by.
+const PACE_FRAMES: usize = 3;
+
+/// [`Pace`] moves to a finer spacing only where its frames, by the planes, would take at most
+/// this part of the budget: frames that fit it well do not flip between two spacings.
+const FINER_MARGIN: f64 = 0.8;
+
+/// The interactive level's plane spacing, kept to what the machine renders within a frame
+/// budget: the same 160×120 pixels' worth on any device, with planes further apart on a slow
+/// one and closer on a fast one, as a drag needs frames that keep up with the hand more than
+/// it needs their detail. After each interactive frame ([`Pace::record`]) the median of the
+/// latest ones at the current spacing decides: over the budget, the planes move apart as far
+/// as a frame's time, taken as proportional to the square root of its planes, says is needed;
+/// well within it, one spacing closer. Time falls more slowly than the planes: where they are
+/// further apart fewer view and light tiles are empty over a pass's planes, and part of a
+/// frame does not depend on them (the CT head's interactive frames on lavapipe took 177 ms of
+/// GPU time with 66 planes, 150–176 ms with 36 and 79–103 ms with 21).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Pace {
+    /// The budget (ms); 0 keeps the level's own spacing.
+    budget_ms: f64,
+    /// Index into [`INTERACTIVE_STEPS`].
+    index: usize,
+    /// The latest frames' times at this spacing.
+    times: Vec<f64>,
+}
+
+impl Pace {
+    pub fn new(budget_ms: f64) -> Pace {
+        let index = INTERACTIVE_STEPS
+            .iter()
+            .position(|&s| s == LEVELS[0].step_factor)
+            .unwrap_or(0);
+        Pace {
+            budget_ms: if budget_ms.is_finite() { budget_ms.max(0.0) } else { 0.0 },
+            index,
+            times: Vec::new(),
+        }
+    }
+
+    /// The interactive level's factor on the scene's sample distance.
+    pub fn step_factor(&self) -> f32 {
+        INTERACTIVE_STEPS[self.index]
+    }
+
+    /// An interactive frame at the current spacing took `ms` (frames that also made or copied
+    /// scene textures are left out by the caller: they are not what the next ones cost).
+    /// Returns whether the spacing changed.
+    pub fn record(&mut self, ms: f64) -> bool {
+        if self.budget_ms <= 0.0 || !ms.is_finite() || ms < 0.0 {
+            return false;
+        }
+        self.times.push(ms);
+        if self.times.len() > PACE_FRAMES {
+            self.times.remove(0);
+        }
+        if self.times.len() < 2 {
+            return false;
+        }
+        let mut sorted = self.times.clone();
+        sorted.sort_by(f64::total_cmp);
+        let n = sorted.len();
+        let median = 0.5 * (sorted[(n - 1) / 2] + sorted[n / 2]);
+        let step = INTERACTIVE_STEPS[self.index] as f64;
+        let at = |i: usize| median * (step / INTERACTIVE_STEPS[i] as f64).sqrt();
+        let mut next = self.index;
+        if median > self.budget_ms {
+            while next + 1 < INTERACTIVE_STEPS.len() && at(next) > self.budget_ms {
+                next += 1;
+            }
+        } else if self.index > 0 && at(self.index - 1) <= FINER_MARGIN * self.budget_ms {
+            next = self.index - 1;
+        }
+        if next == self.index {
+            return false;
+        }
+        self.index = next;
+        self.times.clear();
+        true
+    }
+}
 
 /// Full-quality passes averaged while the view stays idle (the first is the full frame): the
 /// planes and the light grid move between them (`render::jitter_sequence`), so banding that
@@ -412,6 +505,68 @@ mod tests {
         assert_eq!(p.wake_at(), Some(t1 + IDLE_AFTER));
         let idle = t1 + IDLE_AFTER;
         assert_eq!(p.next(idle).map(|j| j.level), Some(1));
+    }
+
+    #[test]
+    fn pace_moves_planes_apart_as_far_as_slow_frames_need() {
+        let mut p = Pace::new(120.0);
+        assert_eq!(p.step_factor(), 6.0, "starts at the level's own spacing");
+        // One frame is not enough to go by.
+        assert!(!p.record(160.0));
+        assert_eq!(p.step_factor(), 6.0);
+        // A median of 162.5 ms at 6: 12 voxels apart would take 162.5 × √(6/12) = 114.9 ms,
+        // 10 apart 125.9.
+        assert!(p.record(165.0));
+        assert_eq!(p.step_factor(), 12.0);
+        // Within the budget, but not well enough for 10 (100 × √(12/10) = 109.5 > 96): kept.
+        for _ in 0..5 {
+            assert!(!p.record(100.0));
+        }
+        assert_eq!(p.step_factor(), 12.0);
+        // Far beyond any spacing's reach: the widest.
+        p.record(5000.0);
+        p.record(5000.0);
+        assert_eq!(p.step_factor(), 16.0);
+    }
+
+    #[test]
+    fn pace_moves_planes_closer_one_spacing_at_a_time_when_frames_fit_well() {
+        let mut p = Pace::new(120.0);
+        p.record(30.0);
+        assert!(p.record(30.0));
+        assert_eq!(p.step_factor(), 5.0);
+        p.record(30.0);
+        assert!(p.record(30.0));
+        assert_eq!(p.step_factor(), 4.0);
+        // The finest: no further.
+        for _ in 0..4 {
+            assert!(!p.record(1.0));
+        }
+        assert_eq!(p.step_factor(), 4.0);
+    }
+
+    #[test]
+    fn pace_goes_by_the_median_not_one_slow_frame() {
+        let mut p = Pace::new(120.0);
+        p.record(100.0);
+        p.record(110.0);
+        // One frame stalled (another process, a page fault): the median of three is 110.
+        assert!(!p.record(900.0));
+        assert_eq!(p.step_factor(), 6.0);
+    }
+
+    #[test]
+    fn pace_without_a_budget_keeps_the_levels_spacing() {
+        for budget in [0.0, -5.0, f64::NAN] {
+            let mut p = Pace::new(budget);
+            for ms in [5000.0, 5000.0, 1.0, 1.0, 1.0] {
+                assert!(!p.record(ms));
+            }
+            assert_eq!(p.step_factor(), LEVELS[0].step_factor);
+        }
+        let mut p = Pace::new(120.0);
+        assert!(!p.record(f64::NAN) && !p.record(f64::INFINITY));
+        assert_eq!(p.step_factor(), LEVELS[0].step_factor, "no time to go by");
     }
 
     #[test]

@@ -18,7 +18,7 @@ use winit::event_loop::{ActiveEventLoop, ControlFlow};
 use winit::window::{Window, WindowId};
 
 use super::panel::{Action, ViewState};
-use super::progressive::{progress_title, InFlight, Job, Progressive, LEVELS, TITLE_EVERY};
+use super::progressive::{progress_title, InFlight, Job, Pace, Progressive, LEVELS, TITLE_EVERY};
 use super::raster::{Painter, Target};
 use super::worker::{Reply, Request, Worker};
 use super::ViewError;
@@ -47,6 +47,8 @@ pub struct Options {
     pub frame_log: bool,
     /// Scripted interaction: after each of the first N frames, orbit by 5° as a drag would.
     pub orbit_frames: u32,
+    /// The time an interactive frame may take ([`Pace`]; 0: the level's own spacing).
+    pub frame_budget_ms: f64,
     /// Scripted interaction: once settled, resize the window to this size and settle again.
     pub resize_after_idle: Option<(u32, u32)>,
 }
@@ -56,6 +58,8 @@ pub struct App {
     opts: Options,
     worker: Worker,
     progressive: Progressive,
+    /// The interactive level's plane spacing, kept within the frame budget.
+    pace: Pace,
     egui: egui::Context,
     painter: Painter,
     surface: Option<Surface>,
@@ -89,11 +93,13 @@ struct Rendering {
 impl App {
     pub fn new(state: ViewState, worker: Worker, opts: Options) -> App {
         let last_scene = state.scene_for_render();
+        let pace = Pace::new(opts.frame_budget_ms);
         App {
             state,
             opts,
             worker,
             progressive: Progressive::new(Instant::now()),
+            pace,
             egui: egui::Context::default(),
             painter: Painter::default(),
             surface: None,
@@ -144,6 +150,12 @@ impl App {
                     duration_ms,
                 } => {
                     self.answered(job);
+                    // What the interactive level costs on this machine, from the frames that
+                    // made or copied no scene textures (the first filters the volumes to half
+                    // resolution; a new spacing makes new tables).
+                    if job.level == 0 && job.pass == 0 && stats.upload_bytes == 0 {
+                        self.pace.record(duration_ms);
+                    }
                     if self.progressive.finished(job, true) {
                         let name = if job.pass > 0 {
                             "accumulate"
@@ -264,8 +276,13 @@ impl App {
         }
         if let Some(job) = self.progressive.next(now) {
             let level = LEVELS[job.level];
+            let step_factor = if job.level == 0 {
+                self.pace.step_factor()
+            } else {
+                level.step_factor
+            };
             let mut scene = self.last_scene.clone();
-            scene.quality.sample_distance = (scene.quality.sample_distance * level.step_factor).min(16.0);
+            scene.quality.sample_distance = (scene.quality.sample_distance * step_factor).min(16.0);
             scene.quality.beams_per_texel =
                 (scene.quality.beams_per_texel * level.beams_factor).max(crate::scene::MIN_BEAMS_PER_TEXEL);
             scene.quality.volume_level = scene.quality.volume_level.max(level.volume_level);
