@@ -314,6 +314,22 @@ fn zero_image_size_is_a_usage_error() {
 }
 
 #[test]
+fn a_frame_budget_that_is_not_a_time_is_a_usage_error() {
+    // Parsed before a display or a device is looked for.
+    let s = Scratch::new("frame-budget");
+    for bad in ["-3", "abc", "inf", "NaN"] {
+        let arg = format!("--frame-budget={bad}");
+        let out = caustica(&s.dir, &["view", "--scene", "ball-lens", &arg]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(EXIT_USAGE), "caustica view {arg}:\n{stderr}");
+        assert!(
+            stderr.contains("--frame-budget") && stderr.contains("not a time in ms"),
+            "caustica view {arg}:\n{stderr}"
+        );
+    }
+}
+
+#[test]
 fn unknown_debug_view_is_a_usage_error() {
     let s = Scratch::new("debug-view");
     render_fails(
