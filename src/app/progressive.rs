@@ -107,10 +107,11 @@ const FINER_MARGIN: f64 = 0.8;
 /// it needs their detail. After each interactive frame ([`Pace::record`]) the median of the
 /// latest ones at the current spacing decides: over the budget, the planes move apart as far
 /// as a frame's time, taken as proportional to the square root of its planes, says is needed;
-/// well within it, one spacing closer. Time falls more slowly than the planes: where they are
-/// further apart fewer view and light tiles are empty over a pass's planes, and part of a
-/// frame does not depend on them (the CT head's interactive frames on lavapipe took 177 ms of
-/// GPU time with 66 planes, 150–176 ms with 36 and 79–103 ms with 21).
+/// well within it, one spacing closer. Time falls more slowly than the planes: part of a
+/// frame does not depend on them, and a plane costs more where they are further apart (not for
+/// the view passes' span: passes over fewer planes counted the same instructions). The CT
+/// head's interactive frames on lavapipe took 177 ms of GPU time with 66 planes, 150–176 ms
+/// with 36 and 79–103 ms with 21.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Pace {
     /// The budget (ms); 0 keeps the level's own spacing.
