@@ -77,12 +77,24 @@ fn load_beam_power(region: u32, ij: vec2<u32>) -> vec3<f32> {
 
 // Where region `region` of a beam's power lies in `beam_power`: with the halves' power in the
 // aux texel (`power_in_aux`) the image holds only the regions after them, from its first
-// (`Layout::power_regions` in state.rs). Every access to `beam_power` from here goes through it.
+// (`Layout::power_regions` in state.rs). `load_beam_power`, `store_beam_power` and
+// `update_beam_power` map every region through it.
 fn power_slot(region: u32) -> u32 {
     if (power_in_aux()) {
         return region - 2u;
     }
     return region;
+}
+
+// Writes beam ij's power in region `region` of `beam_power` (not a half's where the aux texel
+// holds it: `store_beam` writes that).
+fn store_beam_power(region: u32, ij: vec2<u32>, v: vec3<f32>) {
+    store_power_texel(power_slot(region), ij, v);
+}
+
+// As `store_beam_power`, where the bits change (`update_power_texel`).
+fn update_beam_power(region: u32, ij: vec2<u32>, v: vec3<f32>) {
+    update_power_texel(power_slot(region), ij, v);
 }
 
 // Power p as the aux texel's first and last words hold it (`power_in_aux`): r and g in one
@@ -402,7 +414,7 @@ fn freeze_beam(ij: vec2<u32>, k: u32) {
     let last = (k - 1u) % 2u;
     store_beam_words(ij, BEAM_AUX, 1u - last, beam_words(ij, BEAM_AUX, last));
     if (!power_in_aux()) {
-        store_beam_power(power_slot(1u - last), ij, load_beam_power(last, ij));
+        store_beam_power(1u - last, ij, load_beam_power(last, ij));
     }
 }
 
@@ -593,7 +605,7 @@ fn store_beam(ij: vec2<u32>, half: u32, plane: u32, b: Beam) {
     if (REFRACTION) {
         store_beam_texel(ij, BEAM_POS, half, vec4<f32>(b.pos.xy, b.v.xy));
         store_beam_texel(ij, BEAM_AUX, half, aux);
-        store_beam_power(power_slot(half), ij, b.power);
+        store_beam_power(half, ij, b.power);
         return;
     }
     if (power_in_aux()) {
@@ -609,7 +621,7 @@ fn store_beam(ij: vec2<u32>, half: u32, plane: u32, b: Beam) {
         || any(bitcast<vec3<u32>>(beam_texel(ij, BEAM_AUX, half).xyz) != bitcast<vec3<u32>>(aux.xyz))) {
         store_beam_texel(ij, BEAM_AUX, half, aux);
     }
-    update_beam_power(power_slot(half), ij, b.power);
+    update_beam_power(half, ij, b.power);
 }
 
 // Position on the plane at depth z of a beam last seen at `pos` with direction `v`: the
@@ -956,8 +968,8 @@ fn beams_init(ij: vec2<u32>) {
         // The view looks up every cell's light (and the power before the segment): cells
         // outside the volume's box may not be stepped, and what it reads there (where no
         // particle is) must at least be finite.
-        store_beam_power(power_slot(front_power_region(0u)), ij, b.power);
-        store_beam_power(power_slot(front_power_region(1u)), ij, b.power);
+        store_beam_power(front_power_region(0u), ij, b.power);
+        store_beam_power(front_power_region(1u), ij, b.power);
     }
     if (SCATTER) {
         for (var j = 0; j < i32(SCATTER_LAYERS); j++) {
@@ -1190,9 +1202,9 @@ fn beams_step(ij: vec2<u32>, k: u32, tile: u32, mode: u32) {
     }
 
     if (!REFRACTION) {
-        update_beam_power(power_slot(front_power_region(k)), ij, front);
+        update_beam_power(front_power_region(k), ij, front);
     } else if (refracted_power_ring()) {
-        store_beam_power(power_slot(front_power_region(k)), ij, front);
+        store_beam_power(front_power_region(k), ij, front);
         // Not stepped on plane k-1 (read before this step stores its own state).
         let fresh = !current && u32(beam_texel(ij, BEAM_AUX, (k - 1u) % 2u).w) != k - 1u;
         if (fresh) {
@@ -1202,7 +1214,7 @@ fn beams_step(ij: vec2<u32>, k: u32, tile: u32, mode: u32) {
             // stepped; its beams keep their history then.)
             for (var j = 1u; j < BACK_PLANES; j++) {
                 if (j < k) {
-                    store_beam_power(power_slot(front_power_region(k - j)), ij, front);
+                    store_beam_power(front_power_region(k - j), ij, front);
                 }
             }
         }
@@ -1281,7 +1293,7 @@ fn beams_steps(ij: vec2<u32>, a: u32, last: u32, tile: u32) {
         b.pos = drift(b.pos, b.v, z);
         let front = b.power;
         _ = attenuate(&b, x0, z);
-        update_beam_power(power_slot(front_power_region(k)), ij, front);
+        update_beam_power(front_power_region(k), ij, front);
         if (max(front.r, max(front.g, front.b)) > 0.0) {
             lit = k;
         }

@@ -371,11 +371,12 @@ fn beam_power_layer(region: u32) -> u32 {
     return region / 2u;
 }
 
-// The power `beam_power` holds for beam ij in region `region` (`load_beam_power` in
-// beams.wgsl reads a beam's power wherever it is kept).
-fn load_power_texel(region: u32, ij: vec2<u32>) -> vec3<f32> {
-    let t = beam_power_texel(ij, region);
-    let layer = beam_power_layer(region);
+// The power `beam_power` holds for beam ij at slot `slot`, the place of a region in the image
+// (`power_slot` in beams.wgsl; `load_beam_power`, `store_beam_power` and `update_beam_power`
+// there take a beam's region and find its power wherever it is kept).
+fn load_power_texel(slot: u32, ij: vec2<u32>) -> vec3<f32> {
+    let t = beam_power_texel(ij, slot);
+    let layer = beam_power_layer(slot);
     if (F32_STATE) {
         let a = textureLoad(beam_power, t, i32(2u * layer)).xy;
         let b = textureLoad(beam_power, t, i32(2u * layer + 1u)).x;
@@ -394,8 +395,9 @@ fn beam_power_words(v: vec3<f32>) -> vec3<u32> {
     return vec3<u32>(pack2x16float(v.xy), pack2x16float(vec2<f32>(v.z, 0.0)), 0u);
 }
 
-fn store_beam_power(region: u32, ij: vec2<u32>, v: vec3<f32>) {
-    store_beam_power_words(beam_power_texel(ij, region), beam_power_layer(region), beam_power_words(v));
+// Writes power v at slot `slot` of beam ij (`load_power_texel`).
+fn store_power_texel(slot: u32, ij: vec2<u32>, v: vec3<f32>) {
+    store_beam_power_words(beam_power_texel(ij, slot), beam_power_layer(slot), beam_power_words(v));
 }
 
 // Writes the words w (`beam_power_words`) at texel t of layer `layer` (`beam_power_texel`,
@@ -409,14 +411,14 @@ fn store_beam_power_words(t: vec2<i32>, layer: u32, w: vec3<u32>) {
     textureStore(beam_power, t, i32(layer), vec4<u32>(w.xy, 0u, 0u));
 }
 
-// As `store_beam_power`, but the texels are written only where their bits change: a CPU
+// As `store_power_texel`, but the texels are written only where their bits change: a CPU
 // driver stores a texel lane by lane and word by word, and a beam's power often stays as it
 // was (full in clear air, zero in a deep shadow), where the region's texel already holds it.
-// The words that are read (`load_beam_power`) end up the same either way; the load costs
+// The words that are read (`load_power_texel`) end up the same either way; the load costs
 // little (gathered for all lanes).
-fn update_beam_power(region: u32, ij: vec2<u32>, v: vec3<f32>) {
-    let t = beam_power_texel(ij, region);
-    let layer = beam_power_layer(region);
+fn update_power_texel(slot: u32, ij: vec2<u32>, v: vec3<f32>) {
+    let t = beam_power_texel(ij, slot);
+    let layer = beam_power_layer(slot);
     let w = beam_power_words(v);
     var changed: bool;
     if (F32_STATE) {

@@ -714,7 +714,8 @@ impl State {
         // depth and plane in the two halves, and with refraction position and v.xy. Their power
         // by region (the two halves, and each beam's power on the planes before: the view reads
         // the unrefracted beams', refracted ones deposit theirs a voxel back; the halves' not
-        // where the aux texels hold it, `power_in_aux`), f16 rgb in one layer or f32 in two: a record of a beam's regions side by side, or where a row of
+        // where the aux texels hold it, `power_in_aux`), f16 rgb in one layer or f32 in two: a
+        // record of a beam's regions side by side, or where a row of
         // records (with refraction, of a tile's) is too wide, two regions to a layer
         // (`Layout::power_records`). The spread mode's five texels per beam and half. The view
         // rays' aux and (with refraction) position and direction; their colour, light and
