@@ -68,6 +68,9 @@ pub struct Recorder<'r> {
     cmd: vk::CommandBuffer,
     /// Buffers handed over as `Arc`s (staging): released with the recorder, after completion.
     held: Vec<Arc<Buffer>>,
+    /// The descriptor set bound last (null before any): a dispatch with the same set leaves
+    /// it bound (`bind`).
+    last_set: vk::DescriptorSet,
     /// The resources the recorded commands use are borrowed for `'r`.
     uses: PhantomData<&'r ()>,
 }
@@ -91,6 +94,7 @@ impl<'r> Recorder<'r> {
             ctx: ctx.clone(),
             cmd,
             held: Vec::new(),
+            last_set: vk::DescriptorSet::null(),
             uses: PhantomData,
         };
         // SAFETY: fresh command buffer in the initial state.
@@ -246,14 +250,19 @@ impl<'r> Recorder<'r> {
         // size of the layout's push-constant range (checked above).
         unsafe {
             d.cmd_bind_pipeline(self.cmd, vk::PipelineBindPoint::COMPUTE, pipeline.raw);
-            d.cmd_bind_descriptor_sets(
-                self.cmd,
-                vk::PipelineBindPoint::COMPUTE,
-                pipeline.pipeline_layout,
-                0,
-                &[set.raw],
-                &[],
-            );
+            // A set stays bound across pipelines whose layouts are defined alike, which
+            // `check_complete` asks of any pipeline the set is used with: binding it again
+            // would only make a CPU driver hand every resource to the shader anew.
+            if set.raw != self.last_set {
+                d.cmd_bind_descriptor_sets(
+                    self.cmd,
+                    vk::PipelineBindPoint::COMPUTE,
+                    pipeline.pipeline_layout,
+                    0,
+                    &[set.raw],
+                    &[],
+                );
+            }
             if !push.is_empty() {
                 d.cmd_push_constants(
                     self.cmd,
@@ -264,6 +273,7 @@ impl<'r> Recorder<'r> {
                 );
             }
         }
+        self.last_set = set.raw;
         Ok(())
     }
 

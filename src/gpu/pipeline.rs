@@ -330,14 +330,16 @@ impl<'a> DescriptorSet<'a> {
         Ok(())
     }
 
-    /// Checks that the set was made for `pipeline` and that every binding has been written
-    /// (a dispatch must not read an empty descriptor).
+    /// Checks that the set was made for `pipeline`, or for one laid out alike, and that every
+    /// binding has been written (a dispatch must not read an empty descriptor).
     pub(crate) fn check_complete(&self, pipeline: &ComputePipeline) -> Result<(), GpuError> {
         let err = |message: String| GpuError::Shader {
             name: pipeline.label.clone(),
             message,
         };
-        if self.pipeline.set_layout != pipeline.set_layout {
+        // A set serves any pipeline whose bindings and immediates are those it was made for
+        // (the same shader file's entry points): Vulkan counts their layouts as compatible.
+        if self.pipeline.set_layout != pipeline.set_layout && self.pipeline.layout != pipeline.layout {
             return Err(err(format!("descriptor set made for {}", self.pipeline.label)));
         }
         let missing: Vec<&str> = pipeline

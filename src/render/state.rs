@@ -1148,8 +1148,12 @@ pub(super) fn run(
     let ts = Timestamps::new(ctx, 2 + 3 * PLANES_PER_SUBMIT)?;
 
     let pipelines = sweep()?;
+    // One descriptor set per shader file: the sweep's passes (sweep.wgsl) share theirs, which
+    // a recorder binds once for all of them (`Recorder::dispatch`): on a CPU driver binding a
+    // set hands every one of its resources to the shader again, at each dispatch.
+    let (init_set, sweep_set, finish_set) = (0, 1, 2);
     let mut sets = Vec::new();
-    for p in &pipelines {
+    for p in [&pipelines[0], &pipelines[1], &pipelines[4]] {
         let mut set = DescriptorSet::new(ctx, p, &p.label)?;
         let t = &cached.textures;
         let [volume_tex, gradient_tex, orientation_tex] = t.sampled(coarse);
@@ -1222,7 +1226,7 @@ pub(super) fn run(
     };
     rec.dispatch(
         &pipelines[0],
-        &sets[0],
+        &sets[init_set],
         bytemuck::bytes_of(&push(0, 0, 0)),
         groups(layout.beam_groups + layout.view_groups),
     )?;
@@ -1283,7 +1287,13 @@ pub(super) fn run(
                     let last = group_end.min(view.planes - 1);
                     let g = push(plane, last + 1 - plane, view_passes);
                     let offset = light_list_slot(view_passes % 2, 0, 0) * 12;
-                    r.dispatch_indirect(&pipelines[6], &sets[6], bytemuck::bytes_of(&g), light_args, offset)?;
+                    r.dispatch_indirect(
+                        &pipelines[6],
+                        &sets[sweep_set],
+                        bytemuck::bytes_of(&g),
+                        light_args,
+                        offset,
+                    )?;
                     light_passes += 1;
                 }
             } else if plane < view.planes && layout.light_lists {
@@ -1295,7 +1305,7 @@ pub(super) fn run(
                     let offset = light_list_slot(view_passes % 2, in_pass, list) * 12;
                     r.dispatch_indirect(
                         &pipelines[pass],
-                        &sets[pass],
+                        &sets[sweep_set],
                         bytemuck::bytes_of(&lp),
                         light_args,
                         offset,
@@ -1303,7 +1313,7 @@ pub(super) fn run(
                 }
                 light_passes += 1;
             } else if plane < view.planes && window > 0 {
-                r.dispatch(&pipelines[1], &sets[1], p, groups(window))?;
+                r.dispatch(&pipelines[1], &sets[sweep_set], p, groups(window))?;
                 light_passes += 1;
             }
             pass_stamp(&mut r, &ts, &mut stamps, req.pass_timings);
@@ -1313,9 +1323,9 @@ pub(super) fn run(
                 let p = bytemuck::bytes_of(&v);
                 if plane >= 2 && layout.lists {
                     let offset = (view_passes as u64 % LIGHT_RING) * 12;
-                    r.dispatch_indirect(&pipelines[2], &sets[2], p, tile_args, offset)?;
+                    r.dispatch_indirect(&pipelines[2], &sets[sweep_set], p, tile_args, offset)?;
                 } else {
-                    r.dispatch(&pipelines[2], &sets[2], p, groups(layout.view_groups))?;
+                    r.dispatch(&pipelines[2], &sets[sweep_set], p, groups(layout.view_groups))?;
                 }
             }
             pass_stamp(&mut r, &ts, &mut stamps, req.pass_timings);
@@ -1335,7 +1345,12 @@ pub(super) fn run(
             }
             if next_steps > 0 {
                 let t = push(plane, next_steps, view_passes);
-                r.dispatch(&pipelines[3], &sets[3], bytemuck::bytes_of(&t), groups(tile_groups))?;
+                r.dispatch(
+                    &pipelines[3],
+                    &sets[sweep_set],
+                    bytemuck::bytes_of(&t),
+                    groups(tile_groups),
+                )?;
             }
             if lists_light && !layout.light_groups && next_steps > 1 {
                 r.compute_to_compute();
@@ -1343,7 +1358,7 @@ pub(super) fn run(
                 let light_tile_groups = layout.beam_groups.div_ceil(tile * tile);
                 r.dispatch(
                     &pipelines[1],
-                    &sets[1],
+                    &sets[sweep_set],
                     bytemuck::bytes_of(&t),
                     groups(light_tile_groups),
                 )?;
@@ -1376,7 +1391,7 @@ pub(super) fn run(
         if last {
             r.dispatch(
                 &pipelines[4],
-                &sets[4],
+                &sets[finish_set],
                 bytemuck::bytes_of(&push(planes_run - 1, 0, 0)),
                 finish_groups,
             )?;
