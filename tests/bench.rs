@@ -298,17 +298,42 @@ fn tiny_speed_bench_counts_the_memory_it_reports() {
     let fit_csv = std::fs::read_to_string(&report.fit_csv).unwrap();
     assert_eq!(fit_csv.lines().count(), 2, "{fit_csv}");
     assert!(
-        fit_csv.lines().next().unwrap().ends_with(",edit_upload_bytes"),
+        fit_csv
+            .lines()
+            .next()
+            .unwrap()
+            .ends_with(",edit_upload_bytes,fixed_dispatches_per_plane,dispatch_ms"),
         "{fit_csv}"
     );
     assert!(
-        fit_csv.lines().nth(1).unwrap().ends_with(&format!(",{tables}")),
+        fit_csv.lines().nth(1).unwrap().contains(&format!(",{tables},")),
+        "{fit_csv}"
+    );
+    // The device's cost of a dispatch is measured beside the fixed cost (its dispatches all
+    // ran: `dispatch::measure` counts them), and the sweep's dispatches are counted: with
+    // listed light tiles each plane has two light dispatches (the listed tiles and those at
+    // the edge), and a view pass over several planes adds three (the view, its tiles, the
+    // light's lists), so between two and three per plane.
+    let cost = report
+        .dispatch_cost
+        .as_ref()
+        .expect("the tiny viewport brings the dispatch cost");
+    assert_eq!(cost.ms.len(), 3, "{cost:?}");
+    assert!(cost.ms.iter().all(|(_, ms)| ms.is_finite() && *ms >= 0.0), "{cost:?}");
+    let per_plane = fit.fixed_dispatches_per_plane.expect("counted at the tiny viewport");
+    assert!((2.0..3.0).contains(&per_plane), "{per_plane} dispatches per plane");
+    assert!(
+        fit_csv.lines().nth(1).unwrap().split(',').nth(9) == Some(format!("{per_plane:.5}").as_str()),
         "{fit_csv}"
     );
     // The fixed cost is the median of several frames even where the others take one.
     let md = std::fs::read_to_string(&report.markdown).unwrap();
     assert!(
         md.contains(&format!("the median of {} frames there", speed::TINY_FRAMES)),
+        "{md}"
+    );
+    assert!(
+        md.contains("Dispatch cost of this device: indirect, no workgroups"),
         "{md}"
     );
     // The plot draws the scene in colour (the grid, axes and text are grey): its legend's

@@ -168,6 +168,7 @@ fn a_set_serves_the_pipelines_laid_out_alike_and_is_bound_again_after_another() 
         rec.dispatch(pipeline, set, &[], [1, 1, 1]).unwrap();
         rec.compute_to_compute();
     }
+    assert_eq!(rec.dispatches(), 4);
     rec.compute_to_transfer();
     rec.copy_buffer(&words, &mut readback, 16);
     rec.submit_and_wait().unwrap();

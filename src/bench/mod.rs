@@ -6,6 +6,7 @@
 //! frame over viewport sizes.
 
 pub mod convergence;
+pub mod dispatch;
 pub mod light;
 pub mod metrics;
 pub mod plot;

@@ -12,6 +12,7 @@ use crate::gpu::{Context, MemoryUse};
 use crate::render::{PreparedScene, RenderRequest, Renderer};
 use crate::scene::{builtin, Scene};
 
+use super::dispatch::DispatchCost;
 use super::{median, write_err, BenchError};
 
 /// A scene to measure, under the name the tables give it.
@@ -53,6 +54,11 @@ pub struct SpeedPlan {
 /// there moves by a third between runs on a busy CPU (a core's other work weighs on every
 /// dispatch), which a median of several steadies.
 pub const TINY_FRAMES: u32 = 9;
+
+/// Dispatches per kind and round, and rounds, of the dispatch cost (`dispatch::measure`):
+/// about a second on a CPU driver with 2 cores.
+const DISPATCHES_PER_ROUND: u32 = 200;
+const DISPATCH_ROUNDS: u32 = 5;
 
 impl SpeedPlan {
     /// 128² to 1024², five frames each, and 8² for the fixed cost.
@@ -144,6 +150,8 @@ pub struct SpeedRow {
     /// timestamps between the passes add to it).
     pub pass_frames_ms: Spread,
     pub light_grid: [u32; 2],
+    /// Dispatch commands per frame (`RenderStats::dispatches`).
+    pub dispatches: u32,
     /// Light-tile steps (`RenderStats::light_steps`), where light tiles are listed.
     pub light_steps: Option<u64>,
     /// The side of the tiles they count (`RenderStats::tile`).
@@ -161,6 +169,11 @@ impl SpeedRow {
         self.gpu_ms.median / self.planes.max(1) as f64
     }
 
+    /// Dispatch commands per plane.
+    pub fn dispatches_per_plane(&self) -> f64 {
+        self.dispatches as f64 / self.planes.max(1) as f64
+    }
+
     /// Viewport pixels × planes: the work a frame would be if every plane covered the image.
     pub fn pixel_planes(&self) -> f64 {
         self.size as f64 * self.size as f64 * self.planes as f64
@@ -176,6 +189,9 @@ pub struct SpeedFit {
     pub exponent: Option<f64>,
     /// GPU ms per plane at the tiny viewport.
     pub fixed_ms_per_plane: Option<f64>,
+    /// Dispatch commands per plane at the tiny viewport (the same at every size but for the
+    /// view passes' count).
+    pub fixed_dispatches_per_plane: Option<f64>,
     /// Straight-line fit of ms per plane against viewport pixels over every size (the tiny one
     /// included): the intercept (ms per plane at no pixels) and the slope in ns per pixel-plane.
     pub intercept_ms_per_plane: Option<f64>,
@@ -235,6 +251,7 @@ impl SpeedFit {
             scene: scene.to_string(),
             exponent: line_fit(&log_points).map(|l| l.1),
             fixed_ms_per_plane: mine.iter().find(|r| r.tiny).map(|r| r.ms_per_plane()),
+            fixed_dispatches_per_plane: mine.iter().find(|r| r.tiny).map(|r| r.dispatches_per_plane()),
             intercept_ms_per_plane: line.map(|l| l.0),
             ns_per_pixel_plane: line.map(|l| l.1 * 1e6),
             edit: None,
@@ -252,6 +269,8 @@ pub struct SpeedReport {
     pub fit_csv: PathBuf,
     /// GPU ms per frame against pixels × planes (`write_plot`).
     pub plot: PathBuf,
+    /// The device's own cost of a dispatch (with the tiny viewport only).
+    pub dispatch_cost: Option<DispatchCost>,
 }
 
 /// Plots each scene's GPU ms per frame against its viewport's pixels × planes (millions), log
@@ -342,6 +361,7 @@ fn measure(
         pass_ms: passes.map(|mut p| median(&mut p)),
         pass_frames_ms: Spread::of(passes_total),
         light_grid: s.light_grid,
+        dispatches: s.dispatches,
         light_steps: s.light_steps,
         tile: s.tile,
         footprint: s.rect,
@@ -403,6 +423,19 @@ pub fn run(ctx: Arc<Context>, plan: &SpeedPlan, out: &Path, progress: bool) -> R
         }
         bar
     });
+    // The device's cost of a dispatch, before the scenes' textures take its memory: the unit
+    // the fixed cost of a plane is also given in.
+    let dispatch_cost = if plan.tiny_size > 0 {
+        if let Some(b) = &bar {
+            b.set_message("the cost of a dispatch");
+        }
+        Some(
+            super::dispatch::measure(&ctx, DISPATCHES_PER_ROUND, DISPATCH_ROUNDS)
+                .map_err(crate::render::RenderError::Gpu)?,
+        )
+    } else {
+        None
+    };
     let mut renderer = Renderer::new(ctx.clone())?;
     let mut rows = Vec::new();
     let mut edits = Vec::new();
@@ -461,10 +494,11 @@ pub fn run(ctx: Arc<Context>, plan: &SpeedPlan, out: &Path, progress: bool) -> R
         tiny_size: plan.tiny_size,
         load_before: load_before.as_deref(),
         load_after: load_after.as_deref(),
+        dispatch_cost: dispatch_cost.as_ref(),
     };
     super::speed_report::write_markdown(&markdown, &rows, &fits, &context).map_err(write_err(&markdown))?;
     super::speed_report::write_csv(&csv, &rows).map_err(write_err(&csv))?;
-    super::speed_report::write_fit_csv(&fit_csv, &fits).map_err(write_err(&fit_csv))?;
+    super::speed_report::write_fit_csv(&fit_csv, &fits, dispatch_cost.as_ref()).map_err(write_err(&fit_csv))?;
     write_plot(&plot, &rows, &fits).map_err(write_err(&plot))?;
     Ok(SpeedReport {
         rows,
@@ -474,6 +508,7 @@ pub fn run(ctx: Arc<Context>, plan: &SpeedPlan, out: &Path, progress: bool) -> R
         csv,
         fit_csv,
         plot,
+        dispatch_cost,
     })
 }
 

@@ -3,6 +3,7 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
+use super::dispatch::{DispatchCost, DispatchKind};
 use super::speed::{SpeedFit, SpeedRow};
 
 /// What the Markdown header says about the run.
@@ -15,6 +16,8 @@ pub struct Context<'a> {
     pub tiny_size: u32,
     pub load_before: Option<&'a str>,
     pub load_after: Option<&'a str>,
+    /// The device's own cost of a dispatch, measured apart (`dispatch::measure`).
+    pub dispatch_cost: Option<&'a DispatchCost>,
 }
 
 fn mib(bytes: u64) -> f64 {
@@ -104,8 +107,27 @@ pub fn write_markdown(path: &Path, rows: &[SpeedRow], fits: &[SpeedFit], c: &Con
          Edit: the render after an edit of the opacity curve at the smallest viewport of the fit, as in the viewer's editor \
          (the volume images kept): median wall ms of the render call (its GPU part; the rest is the CPU's), and the MiB copied in.\n\n",
     );
-    s.push_str("| scene | exponent | fixed ms per plane | intercept ms per plane | ns per pixel-plane | edit ms (GPU) | edit upload MiB |\n");
-    s.push_str("|---|---|---|---|---|---|---|\n");
+    let per_dispatch = c.dispatch_cost.and_then(DispatchCost::with_work_ms);
+    if let Some(d) = c.dispatch_cost {
+        let kinds: Vec<String> = DispatchKind::ALL
+            .iter()
+            .filter_map(|&k| d.ms_of(k).map(|ms| format!("{} {:.4} ms", k.describe(), ms)))
+            .collect();
+        let _ = write!(
+            s,
+            "Dispatch cost of this device: {} (a shader that adds 1 to a word per invocation, each \
+             dispatch followed by a barrier; median of {} rounds of {} in one submission). \
+             Dispatches per plane: the dispatch commands the sweep recorded at the tiny viewport \
+             (indirect ones included, whether or not their lists hold work), over its planes. Fixed \
+             cost in dispatches: the fixed ms per plane over the cost of a dispatch with work, what \
+             compares across machines.\n\n",
+            kinds.join(", "),
+            d.rounds,
+            d.per_round,
+        );
+    }
+    s.push_str("| scene | exponent | fixed ms per plane | dispatches per plane | fixed cost in dispatches | intercept ms per plane | ns per pixel-plane | edit ms (GPU) | edit upload MiB |\n");
+    s.push_str("|---|---|---|---|---|---|---|---|---|\n");
     for f in fits {
         let (edit, upload) = match &f.edit {
             Some(e) => (
@@ -114,12 +136,18 @@ pub fn write_markdown(path: &Path, rows: &[SpeedRow], fits: &[SpeedFit], c: &Con
             ),
             None => ("–".to_string(), "–".to_string()),
         };
+        let in_dispatches = match (f.fixed_ms_per_plane, per_dispatch) {
+            (Some(f), Some(d)) if d > 0.0 => Some(f / d),
+            _ => None,
+        };
         let _ = writeln!(
             s,
-            "| {} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             f.scene,
             opt(f.exponent, 2),
             opt(f.fixed_ms_per_plane, 3),
+            opt(f.fixed_dispatches_per_plane, 2),
+            opt(in_dispatches, 2),
             opt(f.intercept_ms_per_plane, 3),
             opt(f.ns_per_pixel_plane, 1),
             edit,
@@ -170,11 +198,13 @@ pub fn write_csv(path: &Path, rows: &[SpeedRow]) -> Result<(), String> {
     std::fs::write(path, s).map_err(|e| e.to_string())
 }
 
-pub fn write_fit_csv(path: &Path, fits: &[SpeedFit]) -> Result<(), String> {
+pub fn write_fit_csv(path: &Path, fits: &[SpeedFit], dispatch: Option<&DispatchCost>) -> Result<(), String> {
     let mut s = String::from(
         "scene,exponent,fixed_ms_per_plane,intercept_ms_per_plane,ns_per_pixel_plane,\
-         edit_viewport,edit_wall_ms_median,edit_gpu_ms_median,edit_upload_bytes\n",
+         edit_viewport,edit_wall_ms_median,edit_gpu_ms_median,edit_upload_bytes,\
+         fixed_dispatches_per_plane,dispatch_ms\n",
     );
+    let dispatch_ms = dispatch.and_then(DispatchCost::with_work_ms);
     let field = |v: Option<f64>| {
         v.filter(|v| v.is_finite())
             .map_or_else(String::new, |v| format!("{v:.5}"))
@@ -191,13 +221,15 @@ pub fn write_fit_csv(path: &Path, fits: &[SpeedFit]) -> Result<(), String> {
         );
         let _ = writeln!(
             s,
-            "{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{}",
             f.scene,
             field(f.exponent),
             field(f.fixed_ms_per_plane),
             field(f.intercept_ms_per_plane),
             field(f.ns_per_pixel_plane),
             edit,
+            field(f.fixed_dispatches_per_plane),
+            field(dispatch_ms),
         );
     }
     std::fs::write(path, s).map_err(|e| e.to_string())

@@ -68,6 +68,8 @@ pub struct Recorder<'r> {
     cmd: vk::CommandBuffer,
     /// Buffers handed over as `Arc`s (staging): released with the recorder, after completion.
     held: Vec<Arc<Buffer>>,
+    /// Dispatch commands recorded, direct and indirect (`dispatches`).
+    dispatches: u32,
     /// The descriptor set bound last (null before any): a dispatch with the same set leaves
     /// it bound (`bind`).
     last_set: vk::DescriptorSet,
@@ -94,6 +96,7 @@ impl<'r> Recorder<'r> {
             ctx: ctx.clone(),
             cmd,
             held: Vec::new(),
+            dispatches: 0,
             last_set: vk::DescriptorSet::null(),
             uses: PhantomData,
         };
@@ -104,6 +107,12 @@ impl<'r> Recorder<'r> {
 
     fn d(&self) -> &ash::Device {
         &self.ctx.device
+    }
+
+    /// Dispatch commands recorded so far, direct and indirect (an indirect one whose
+    /// arguments say no workgroups counts too: a CPU driver still reads them).
+    pub fn dispatches(&self) -> u32 {
+        self.dispatches
     }
 
     /// Moves images from `UNDEFINED` (contents discarded) to `GENERAL`.
@@ -291,6 +300,7 @@ impl<'r> Recorder<'r> {
         self.bind(pipeline, set, push)?;
         // SAFETY: recording state with a compute pipeline and its set bound above.
         unsafe { self.d().cmd_dispatch(self.cmd, groups[0], groups[1], groups[2]) };
+        self.dispatches += 1;
         Ok(())
     }
 
@@ -317,6 +327,7 @@ impl<'r> Recorder<'r> {
         // borrowed for 'r, holds the three words at `offset` (checked above) and was created
         // with INDIRECT_BUFFER usage (`Buffer::new_storage`).
         unsafe { self.d().cmd_dispatch_indirect(self.cmd, args.raw, offset) };
+        self.dispatches += 1;
         Ok(())
     }
 

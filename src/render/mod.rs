@@ -270,6 +270,9 @@ pub struct RenderStats {
     /// Light passes of the sweep: one per plane, or one per view pass where the light is
     /// stepped over a view pass's planes in one dispatch ([`RenderRequest::per_plane_light`]).
     pub light_passes: u32,
+    /// Dispatch commands the sweep recorded, direct and indirect, the final pass included
+    /// (each one that has work wakes a CPU driver's threads: `bench --speed`'s dispatch cost).
+    pub dispatches: u32,
     /// Light-tile steps (tiles of `tile` × `tile` beams, over all planes) where light tiles
     /// are listed per plane: the light's work.
     pub light_steps: Option<u64>,

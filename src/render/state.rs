@@ -1251,6 +1251,7 @@ pub(super) fn run(
     let next_view_pass = |k: u32| (k + 1..=dispatches).find(|&j| view_pass(j));
     let mut view_passes = 0u32;
     let mut light_passes = 0u32;
+    let mut recorded = 0u32;
     let mut last_view = 0u32;
     let mut plane = 1u32;
     let mut rec = Some(rec);
@@ -1404,6 +1405,7 @@ pub(super) fn run(
         }
         r.timestamp(&ts, stamps);
         stamps += 1;
+        recorded += r.dispatches();
         r.submit_and_wait()?;
         cached.uploaded();
         // With pass timings: light, view and listing per plane, then the finish pass: the last
@@ -1457,6 +1459,7 @@ pub(super) fn run(
                     view_passes,
                     view_planes: layout.view_planes,
                     light_passes,
+                    dispatches: recorded,
                     light_steps,
                     tile: layout.tile,
                     rect: [view.rect.width(), view.rect.height()],
