@@ -205,3 +205,21 @@ fn a_turn_keeps_the_layout_where_asked_and_lays_the_textures_out_anew_otherwise(
     assert_eq!(anew.image.pixels, fresh(&p));
     gpu.assert_clean();
 }
+
+#[test]
+fn the_deposit_cells_kept_between_renders_follow_the_viewport() {
+    // With refraction the beams deposit only in the occupied cells grown by what a view
+    // sample reads, a margin that follows the pixels' size, and the light tiles start where
+    // their beams come near those cells; the renderer keeps the grown cells and their words
+    // between renders while the growth in cells stays the same (`GrowthCache`, whose unit
+    // test checks the words for each growth). Across viewports whose margins differ, each
+    // image must be the fresh renderer's.
+    let mut gpu = Gpu::new();
+    let p = prepared();
+    for (w, h) in [(96, 80), (12, 10), (96, 80)] {
+        let req = RenderRequest::new(w, h);
+        let fresh = Gpu::new().render(&p, &req).image.pixels;
+        assert_eq!(gpu.render(&p, &req).image.pixels, fresh, "{w}×{h}");
+    }
+    gpu.assert_clean();
+}

@@ -1083,8 +1083,8 @@ pub(super) fn run(
         if features.refraction {
             // A beam deposits only where a view sample can read it: in those cells; a beam
             // whose deposit reaches further (spread by refraction) always deposits.
-            if let Some((first, others)) = grown.split_first() {
-                deposit_cells = first.words(others);
+            if let Some(words) = cached.grown_words(scale.map(|s| s * straight), coarse) {
+                deposit_cells = words.as_ref().clone();
                 deposit_cells[3] = (straight - every).to_bits();
             }
         }

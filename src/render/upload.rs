@@ -683,9 +683,62 @@ impl TexturesKey {
     }
 }
 
-/// Occupied cells grown, with whether they are the half-resolution level's and the growth in
-/// cells of each grid.
-type KeptGrowth = (bool, Vec<[usize; 3]>, Arc<Vec<Grown>>);
+/// The occupied cells last grown, with whether they are the half-resolution level's and the
+/// growth in cells of each grid, and their words for the shaders once asked for: successive
+/// frames of a drag mostly ask for the same growth, and at the interactive level's coarse
+/// planes and beams growing took tens of ms. Made anew for every frame, the words took a CPU
+/// driver's frames of the CT head about as long as a few of its planes.
+#[derive(Default)]
+pub struct GrowthCache {
+    kept: RefCell<Option<KeptGrowth>>,
+}
+
+struct KeptGrowth {
+    coarse: bool,
+    growth: Vec<[usize; 3]>,
+    grown: Arc<Vec<Grown>>,
+    words: Option<Arc<Vec<u32>>>,
+}
+
+impl GrowthCache {
+    /// `occupancy` (the grids of the level `coarse` says) grown by `margin`
+    /// (`Occupancy::grown`), kept while the growth in cells stays the same.
+    pub fn grown(&self, occupancy: &[Occupancy], margin: [f32; 3], coarse: bool) -> Arc<Vec<Grown>> {
+        let growth: Vec<[usize; 3]> = occupancy.iter().map(|o| o.growth(margin)).collect();
+        let mut kept = self.kept.borrow_mut();
+        if let Some(k) = kept.as_ref() {
+            if k.coarse == coarse && k.growth == growth {
+                return k.grown.clone();
+            }
+        }
+        let grown = Arc::new(occupancy.iter().map(|o| o.grown(margin)).collect::<Vec<_>>());
+        *kept = Some(KeptGrowth {
+            coarse,
+            growth,
+            grown: grown.clone(),
+            words: None,
+        });
+        grown
+    }
+
+    /// The grids [`GrowthCache::grown`] gives as the shaders read them: the first's words with
+    /// the others merged in (`Grown::words`), kept with the grids. None without grids.
+    pub fn words(&self, occupancy: &[Occupancy], margin: [f32; 3], coarse: bool) -> Option<Arc<Vec<u32>>> {
+        let grown = self.grown(occupancy, margin, coarse);
+        let mut kept = self.kept.borrow_mut();
+        let words = &mut kept.as_mut()?.words;
+        if words.is_none() {
+            let (first, others) = grown.split_first()?;
+            *words = Some(Arc::new(first.words(others)));
+        }
+        words.clone()
+    }
+
+    /// Forgets what it kept (the occupied cells changed).
+    pub fn clear(&self) {
+        self.kept.replace(None);
+    }
+}
 
 /// Scene textures kept by the renderer between renders.
 pub struct CachedTextures {
@@ -695,8 +748,8 @@ pub struct CachedTextures {
     /// its first submission) the textures hold nothing and must not be reused. A `Cell`, so
     /// it can be set while the render's descriptor sets borrow the textures.
     uploaded: Cell<bool>,
-    /// The occupied cells last grown ([`CachedTextures::grown`]) and by how many cells each.
-    grown: RefCell<Option<KeptGrowth>>,
+    /// The occupied cells last grown ([`CachedTextures::grown`]).
+    grown: GrowthCache,
 }
 
 impl CachedTextures {
@@ -705,7 +758,7 @@ impl CachedTextures {
             key,
             textures,
             uploaded: Cell::new(false),
-            grown: RefCell::new(None),
+            grown: GrowthCache::default(),
         }
     }
 
@@ -770,26 +823,19 @@ impl CachedTextures {
         tf: &TransferFunctions,
         key: TexturesKey,
     ) -> Result<PendingUpload, GpuError> {
-        self.grown.replace(None);
+        self.grown.clear();
         let sample_distance = key.sample_distance;
         self.replace(key, |t| t.replace_transfer(ctx, tf, sample_distance))
     }
 
-    /// The textures' occupied cells grown by `margin` (`Occupancy::grown`), kept while the
-    /// growth in cells stays the same: successive frames of a drag mostly ask for the same,
-    /// and at the interactive level's coarse planes and beams growing took tens of ms.
+    /// The textures' occupied cells grown by `margin` (`GrowthCache::grown`).
     pub fn grown(&self, margin: [f32; 3], coarse: bool) -> Arc<Vec<Grown>> {
-        let (_, occupancy) = self.textures.occupancy_for(coarse);
-        let key: Vec<[usize; 3]> = occupancy.iter().map(|o| o.growth(margin)).collect();
-        let mut kept = self.grown.borrow_mut();
-        if let Some((c, k, g)) = kept.as_ref() {
-            if *c == coarse && *k == key {
-                return g.clone();
-            }
-        }
-        let g = Arc::new(occupancy.iter().map(|o| o.grown(margin)).collect::<Vec<_>>());
-        *kept = Some((coarse, key, g.clone()));
-        g
+        self.grown.grown(self.textures.occupancy_for(coarse).1, margin, coarse)
+    }
+
+    /// Their words for the shaders (`GrowthCache::words`).
+    pub fn grown_words(&self, margin: [f32; 3], coarse: bool) -> Option<Arc<Vec<u32>>> {
+        self.grown.words(self.textures.occupancy_for(coarse).1, margin, coarse)
     }
 
     /// Called after a submission that contained the upload has completed.
@@ -807,6 +853,49 @@ fn missing() -> GpuError {
 
 #[cfg(test)]
 mod tests {
+    use super::super::occupancy::{Occupancy, CELL};
+
+    #[test]
+    fn the_growth_cache_gives_the_words_of_the_growth_asked_for() {
+        // Two grids over the same box (the volume's cells and a coarser one), each with an
+        // occupied cell: the words kept for one margin must not serve another whose growth in
+        // cells differs, and must come back when it does not.
+        let grid = |cells: [usize; 3], at: [usize; 3]| {
+            let mut flags = vec![false; cells.iter().product()];
+            flags[(at[2] * cells[1] + at[1]) * cells[0] + at[0]] = true;
+            Occupancy {
+                flags,
+                cells,
+                voxels: cells.map(|c| c * CELL),
+                edge: CELL,
+            }
+        };
+        let occupancy = [grid([8, 6, 5], [3, 2, 2]), grid([4, 3, 3], [0, 2, 1])];
+        let fresh = |margin: [f32; 3]| {
+            let grown: Vec<_> = occupancy.iter().map(|o| o.grown(margin)).collect();
+            grown[0].words(&grown[1..])
+        };
+        let cache = super::GrowthCache::default();
+        let (near, far) = ([0.05; 3], [0.3; 3]);
+        assert_ne!(occupancy[0].growth(near), occupancy[0].growth(far));
+        for margin in [near, far, far, near] {
+            let words = cache.words(&occupancy, margin, false).expect("two grids");
+            assert_eq!(*words, fresh(margin), "{margin:?}");
+        }
+        // The same growth kept: the same words, not made again.
+        let a = cache.words(&occupancy, near, false).unwrap();
+        let b = cache.words(&occupancy, [0.051; 3], false).unwrap();
+        assert_eq!(occupancy[0].growth(near), occupancy[0].growth([0.051; 3]));
+        assert!(std::sync::Arc::ptr_eq(&a, &b));
+        // Another level, or a cleared cache, makes them anew.
+        assert!(!std::sync::Arc::ptr_eq(
+            &a,
+            &cache.words(&occupancy, near, true).unwrap()
+        ));
+        cache.clear();
+        assert_eq!(*cache.words(&occupancy, near, false).unwrap(), fresh(near));
+    }
+
     #[test]
     fn halves_saturate_instead_of_overflowing() {
         let bytes = super::halves([1.0f32, 1e6, 65504.0].into_iter());
