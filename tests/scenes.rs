@@ -558,3 +558,68 @@ fn refracted_light_renders_the_same_in_either_layout_of_the_volume() {
     }
     gpu.assert_clean();
 }
+
+/// The README's example of what each feature set costs ("Models only what a scene
+/// requires"): the ball-lens volume at 24³ rendered at 256×256 with three transfer functions.
+/// Its features and state-buffer sizes are exact (the times are a machine's, and are not
+/// checked): each row must be what `render --timings` prints today, so that the table cannot
+/// go stale as the state's layout changes.
+#[test]
+fn the_readme_feature_table_gives_the_features_and_state_sizes_a_render_prints() {
+    let readme = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).unwrap();
+    let rows: Vec<(String, String, String)> = readme
+        .lines()
+        .filter(|l| l.starts_with("| `") && l.contains(".json`") && l.contains(" MiB |"))
+        .map(|l| {
+            let cells: Vec<&str> = l.split('|').map(str::trim).collect();
+            let file = cells[1].split('`').nth(1).unwrap().to_string();
+            let features = cells[2].trim_matches('`').to_string();
+            (file, features, cells[3].to_string())
+        })
+        .collect();
+    assert_eq!(rows.len(), 3, "the README's feature example has three rows: {rows:?}");
+    let dir = std::env::temp_dir().join(format!("caustica-feature-table-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let run = |args: &[&str]| {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_caustica"))
+            .args(args)
+            .current_dir(&dir)
+            .env("CAUSTICA_VALIDATION", "require")
+            .output()
+            .expect("run the caustica binary");
+        let text = format!(
+            "{}{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(out.status.success(), "caustica {args:?} failed:\n{text}");
+        text
+    };
+    run(&["dataset", "ball-lens", "--resolution", "24", "-o", "ball.nhdr"]);
+    for (file, features, state) in rows {
+        let transfer = format!("{}/transfer_functions/{file}", env!("CARGO_MANIFEST_DIR"));
+        let printed = run(&[
+            "render",
+            "ball.nhdr",
+            "--transfer",
+            &transfer,
+            "--size",
+            "256x256",
+            "--timings",
+            "-o",
+            "out.png",
+        ]);
+        let line = |key: &str| {
+            printed
+                .lines()
+                .find_map(|l| l.strip_prefix(key))
+                .unwrap_or_else(|| panic!("no '{key}' line in:\n{printed}"))
+                .trim()
+                .to_string()
+        };
+        assert_eq!(line("features:"), features, "{file}");
+        assert_eq!(line("state buffers:"), state, "{file}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
