@@ -1,8 +1,8 @@
 //! The device's own cost of a compute dispatch, measured apart from the renderer: the floor
 //! under the fixed cost of a plane that `bench --speed` reports. On a CPU driver every
 //! dispatch that has work wakes the driver's threads and waits for the last of them, whatever
-//! the shader does; how long that takes depends on the machine (its cores, its hypervisor),
-//! so the fixed cost is also given in these units, which compare across machines.
+//! the shader does; how long that takes depends on the machine (its cores, its hypervisor) and
+//! on the moment, so the fixed cost is also given in these units, measured in the same run.
 
 use std::sync::Arc;
 

@@ -119,8 +119,8 @@ pub fn write_markdown(path: &Path, rows: &[SpeedRow], fits: &[SpeedFit], c: &Con
              dispatch followed by a barrier; median of {} rounds of {} in one submission). \
              Dispatches per plane: the dispatch commands the sweep recorded at the tiny viewport \
              (indirect ones included, whether or not their lists hold work), over its planes. Fixed \
-             cost in dispatches: the fixed ms per plane over the cost of a dispatch with work, what \
-             compares across machines.\n\n",
+             cost in dispatches: the fixed ms per plane over the cost of a dispatch with work in \
+             this run (the driver's hand-over moves between runs on a busy machine).\n\n",
             kinds.join(", "),
             d.rounds,
             d.per_round,
