@@ -154,10 +154,7 @@ impl Pace {
         if self.times.len() < 2 {
             return false;
         }
-        let mut sorted = self.times.clone();
-        sorted.sort_by(f64::total_cmp);
-        let n = sorted.len();
-        let median = 0.5 * (sorted[(n - 1) / 2] + sorted[n / 2]);
+        let median = crate::bench::median(&mut self.times.clone());
         let step = INTERACTIVE_STEPS[self.index] as f64;
         let at = |i: usize| median * (step / INTERACTIVE_STEPS[i] as f64).sqrt();
         let mut next = self.index;

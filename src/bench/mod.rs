@@ -233,7 +233,8 @@ fn apply(prepared: &mut PreparedScene, s: &Setting) {
     q.beams_per_texel = s.beams_per_texel;
 }
 
-fn median(v: &mut [f64]) -> f64 {
+/// The median of `v` (the mean of the middle two where their number is even); sorts `v`.
+pub(crate) fn median(v: &mut [f64]) -> f64 {
     v.sort_by(f64::total_cmp);
     let n = v.len();
     if n % 2 == 1 {

@@ -237,6 +237,8 @@ pub fn line_fit(points: &[(f64, f64)]) -> Option<(f64, f64)> {
 impl SpeedFit {
     pub fn of(scene: &str, rows: &[SpeedRow]) -> SpeedFit {
         let mine: Vec<&SpeedRow> = rows.iter().filter(|r| r.scene == scene).collect();
+        // The tiny viewport's row: the fixed cost.
+        let tiny = mine.iter().copied().find(|r| r.tiny);
         let log_points: Vec<(f64, f64)> = mine
             .iter()
             .filter(|r| !r.tiny && r.gpu_ms.median > 0.0)
@@ -250,8 +252,8 @@ impl SpeedFit {
         SpeedFit {
             scene: scene.to_string(),
             exponent: line_fit(&log_points).map(|l| l.1),
-            fixed_ms_per_plane: mine.iter().find(|r| r.tiny).map(|r| r.ms_per_plane()),
-            fixed_dispatches_per_plane: mine.iter().find(|r| r.tiny).map(|r| r.dispatches_per_plane()),
+            fixed_ms_per_plane: tiny.map(SpeedRow::ms_per_plane),
+            fixed_dispatches_per_plane: tiny.map(SpeedRow::dispatches_per_plane),
             intercept_ms_per_plane: line.map(|l| l.0),
             ns_per_pixel_plane: line.map(|l| l.1 * 1e6),
             edit: None,
