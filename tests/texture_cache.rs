@@ -15,8 +15,13 @@ use common::Gpu;
 type Edit = Box<dyn Fn(&mut PreparedScene)>;
 
 fn prepared() -> PreparedScene {
+    prepared_at(32)
+}
+
+/// The ball-lens scene with its volume at `resolution` voxels along its longest axis.
+fn prepared_at(resolution: usize) -> PreparedScene {
     let mut scene = builtin("ball-lens").unwrap().scene;
-    scene.volume = VolumeSource::builtin("ball-lens", 32);
+    scene.volume = VolumeSource::builtin("ball-lens", resolution);
     PreparedScene::load(&scene).unwrap()
 }
 
@@ -211,11 +216,14 @@ fn the_deposit_cells_kept_between_renders_follow_the_viewport() {
     // With refraction the beams deposit only in the occupied cells grown by what a view
     // sample reads, a margin that follows the pixels' size, and the light tiles start where
     // their beams come near those cells; the renderer keeps the grown cells and their words
-    // between renders while the growth in cells stays the same (`GrowthCache`, whose unit
-    // test checks the words for each growth). Across viewports whose margins differ, each
-    // image must be the fresh renderer's.
+    // between renders while the growth in cells stays the same (`GrowthCache`). Across
+    // viewports whose margins differ, each image must be the fresh renderer's. At 64³ the
+    // coarse viewport's pixels (about 5 voxels) read the light of beams more cells away from
+    // the ground and the ball than the fine one's margin grows them by: with the fine
+    // viewport's cells kept for the coarse one, its image moved by up to 0.019 (of 2.5) and
+    // this test failed. At 32³, the size it rendered before, a stale cache went unnoticed.
     let mut gpu = Gpu::new();
-    let p = prepared();
+    let p = prepared_at(64);
     for (w, h) in [(96, 80), (12, 10), (96, 80)] {
         let req = RenderRequest::new(w, h);
         let fresh = Gpu::new().render(&p, &req).image.pixels;
