@@ -205,3 +205,48 @@ fn cli_exit_codes_and_outputs_for_faults() {
         let _ = std::fs::remove_dir_all(&dir);
     }
 }
+
+#[test]
+fn the_submit_timeout_comes_from_the_environment_and_a_bad_one_is_named() {
+    // The limit a hang is reported against: CAUSTICA_SUBMIT_TIMEOUT where it is whole seconds
+    // (for runs under a profiler), else the default 120 s with a warning naming the value.
+    let cases = [
+        ("600", "within 600 s", false),
+        ("2.5", "within 120 s", true),
+        ("0", "within 120 s", true),
+    ];
+    for (value, within, warned) in cases {
+        let dir = scratch("timeout");
+        let out = Command::new(env!("CARGO_BIN_EXE_caustica"))
+            .args([
+                "render",
+                "--scene",
+                "ball-lens",
+                "--resolution",
+                "16",
+                "--size",
+                "16x16",
+            ])
+            .args(["--sample-distance", "0.25", "-o", "out.png"])
+            .current_dir(&dir)
+            .env("CAUSTICA_FAULT", "hang:1")
+            .env("CAUSTICA_VALIDATION", "0")
+            .env("CAUSTICA_SUBMIT_TIMEOUT", value)
+            .output()
+            .expect("run caustica");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        eprintln!(
+            "CAUSTICA_SUBMIT_TIMEOUT={value}: exit {:?}\n{stderr}",
+            out.status.code()
+        );
+        assert_eq!(out.status.code(), Some(4), "{value}: {stderr}");
+        assert!(
+            stderr.contains(within),
+            "{value}: stderr should mention '{within}': {stderr}"
+        );
+        let warning = format!("CAUSTICA_SUBMIT_TIMEOUT ignored: '{value}'");
+        assert_eq!(stderr.contains(&warning), warned, "{value}: {stderr}");
+        assert!(!dir.join("out.png").exists(), "{value}: no image after a hang");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}

@@ -61,7 +61,10 @@ impl ContextDesc {
     /// Validation from the environment: `CAUSTICA_VALIDATION=1` enables it,
     /// `CAUSTICA_VALIDATION=require` also fails when the layer is not installed.
     /// `CAUSTICA_FAULT` injects faults (see [`Faults`]); a malformed value is ignored with a
-    /// warning.
+    /// warning. `CAUSTICA_SUBMIT_TIMEOUT` (seconds) replaces [`FENCE_TIMEOUT`], for runs
+    /// under a profiler or an instruction counter, which slow a CPU driver many times over; a
+    /// value that is not a whole number of seconds from 1 to a year is ignored with a warning
+    /// too.
     pub fn from_env(device: DeviceSelector) -> Self {
         let v = std::env::var("CAUSTICA_VALIDATION").unwrap_or_default();
         let faults = match std::env::var("CAUSTICA_FAULT") {
@@ -71,13 +74,28 @@ impl ContextDesc {
             }),
             Err(_) => Faults::default(),
         };
+        let fence_timeout = std::env::var("CAUSTICA_SUBMIT_TIMEOUT").ok().and_then(|t| {
+            submit_timeout(&t)
+                .map_err(|e| log::warn!("CAUSTICA_SUBMIT_TIMEOUT ignored: {e}"))
+                .ok()
+        });
         ContextDesc {
             device,
             validation: matches!(v.as_str(), "1" | "require" | "true"),
             require_validation: v == "require",
             faults,
-            fence_timeout: None,
+            fence_timeout,
         }
+    }
+}
+
+/// The longest wait for one submission from `CAUSTICA_SUBMIT_TIMEOUT`: whole seconds, from 1
+/// to a year.
+pub fn submit_timeout(value: &str) -> Result<Duration, String> {
+    const YEAR: u64 = 365 * 86_400;
+    match value.trim().parse::<u64>() {
+        Ok(s) if (1..=YEAR).contains(&s) => Ok(Duration::from_secs(s)),
+        _ => Err(format!("'{value}' is not a whole number of seconds from 1 to {YEAR}")),
     }
 }
 
@@ -435,5 +453,31 @@ impl Context {
                 .get_physical_device_format_properties(self.physical, format)
         }
         .optimal_tiling_features
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_submit_timeout_is_whole_seconds_from_one_to_a_year() {
+        assert_eq!(submit_timeout("600"), Ok(Duration::from_secs(600)));
+        assert_eq!(submit_timeout(" 1 "), Ok(Duration::from_secs(1)));
+        assert_eq!(submit_timeout("31536000"), Ok(Duration::from_secs(31_536_000)));
+        for bad in [
+            "0",
+            "-5",
+            "2.5",
+            "abc",
+            "",
+            "inf",
+            "NaN",
+            "31536001",
+            "99999999999999999999",
+        ] {
+            let e = submit_timeout(bad).expect_err(bad);
+            assert!(e.contains(&format!("'{bad}'")), "{bad}: {e}");
+        }
     }
 }

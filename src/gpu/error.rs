@@ -16,7 +16,7 @@ pub enum GpuError {
     OutOfHostMemory { call: &'static str },
     #[error("the Vulkan device was lost during {call} (driver crash, reset or timeout); nothing more can run on it")]
     DeviceLost { call: &'static str },
-    #[error("the Vulkan device did not finish a submission within {seconds} s; giving up on it (device hung or lost)")]
+    #[error("the Vulkan device did not finish a submission within {seconds} s; giving up on it (device hung or lost; CAUSTICA_SUBMIT_TIMEOUT=SECONDS waits longer)")]
     Timeout { seconds: u64 },
     #[error("Vulkan call {call} failed: {result:?}")]
     Vulkan { call: &'static str, result: vk::Result },
