@@ -887,13 +887,21 @@ mod tests {
         let b = cache.words(&occupancy, [0.051; 3], false).unwrap();
         assert_eq!(occupancy[0].growth(near), occupancy[0].growth([0.051; 3]));
         assert!(std::sync::Arc::ptr_eq(&a, &b));
-        // Another level, or a cleared cache, makes them anew.
+        // Another level makes them anew.
         assert!(!std::sync::Arc::ptr_eq(
             &a,
             &cache.words(&occupancy, near, true).unwrap()
         ));
+        // A transfer-function edit changes the occupied cells but not their growth: after a
+        // clear the words are those of the cells given, not of the cells kept.
+        let edited = [grid([8, 6, 5], [6, 4, 1]), grid([4, 3, 3], [3, 0, 2])];
+        assert_eq!(edited[0].growth(near), occupancy[0].growth(near));
+        let kept = cache.words(&occupancy, near, false).unwrap();
         cache.clear();
-        assert_eq!(*cache.words(&occupancy, near, false).unwrap(), fresh(near));
+        let anew = cache.words(&edited, near, false).unwrap();
+        let grown: Vec<_> = edited.iter().map(|o| o.grown(near)).collect();
+        assert_eq!(*anew, grown[0].words(&grown[1..]));
+        assert_ne!(*anew, *kept);
     }
 
     #[test]
