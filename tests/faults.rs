@@ -129,6 +129,11 @@ fn a_request_the_driver_refuses_is_out_of_memory() {
 // ---- The command line ----
 
 fn caustica(dir: &std::path::Path, fault: &str, extra: &[&str]) -> Output {
+    command(dir, fault, extra).output().expect("run caustica")
+}
+
+/// A tiny render of ball-lens into `dir` with the fault `fault` injected, ready to run.
+fn command(dir: &std::path::Path, fault: &str, extra: &[&str]) -> Command {
     let mut args = vec![
         "render",
         "--scene",
@@ -141,14 +146,13 @@ fn caustica(dir: &std::path::Path, fault: &str, extra: &[&str]) -> Output {
         "out.png",
     ];
     args.extend_from_slice(extra);
-    Command::new(env!("CARGO_BIN_EXE_caustica"))
-        .args(&args)
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_caustica"));
+    cmd.args(&args)
         .current_dir(dir)
         .env("CAUSTICA_FAULT", fault)
         // The validation case needs the layer; elsewhere it would only add its warnings.
-        .env("CAUSTICA_VALIDATION", if fault == "validation" { "1" } else { "0" })
-        .output()
-        .expect("run caustica")
+        .env("CAUSTICA_VALIDATION", if fault == "validation" { "1" } else { "0" });
+    cmd
 }
 
 fn scratch(name: &str) -> std::path::PathBuf {
@@ -217,20 +221,7 @@ fn the_submit_timeout_comes_from_the_environment_and_a_bad_one_is_named() {
     ];
     for (value, within, warned) in cases {
         let dir = scratch("timeout");
-        let out = Command::new(env!("CARGO_BIN_EXE_caustica"))
-            .args([
-                "render",
-                "--scene",
-                "ball-lens",
-                "--resolution",
-                "16",
-                "--size",
-                "16x16",
-            ])
-            .args(["--sample-distance", "0.25", "-o", "out.png"])
-            .current_dir(&dir)
-            .env("CAUSTICA_FAULT", "hang:1")
-            .env("CAUSTICA_VALIDATION", "0")
+        let out = command(&dir, "hang:1", &["--sample-distance", "0.25"])
             .env("CAUSTICA_SUBMIT_TIMEOUT", value)
             .output()
             .expect("run caustica");

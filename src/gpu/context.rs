@@ -91,7 +91,7 @@ impl ContextDesc {
 
 /// The longest wait for one submission from `CAUSTICA_SUBMIT_TIMEOUT`: whole seconds, from 1
 /// to a year.
-pub fn submit_timeout(value: &str) -> Result<Duration, String> {
+fn submit_timeout(value: &str) -> Result<Duration, String> {
     const YEAR: u64 = 365 * 86_400;
     match value.trim().parse::<u64>() {
         Ok(s) if (1..=YEAR).contains(&s) => Ok(Duration::from_secs(s)),
