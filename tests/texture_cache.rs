@@ -8,7 +8,7 @@ use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
 use caustica::render::{PreparedScene, RenderError, RenderRequest};
-use caustica::scene::{builtin, VolumeSource};
+use caustica::scene::{builtin, EnvMap, Environment, VolumeSource};
 use caustica::transfer::{ColorRamp, TABLE_SIZE};
 use common::Gpu;
 
@@ -230,4 +230,89 @@ fn the_deposit_cells_kept_between_renders_follow_the_viewport() {
         assert_eq!(gpu.render(&p, &req).image.pixels, fresh, "{w}×{h}");
     }
     gpu.assert_clean();
+}
+
+#[test]
+fn an_environment_change_replaces_the_map_alone_and_its_parameters_nothing() {
+    // The environment map is a scene texture too: switching between two image environments
+    // must give the fresh renderer's image, not the first file's map kept, and copies in the
+    // new map alone (the volumes stay). Its intensity and a background colour are parameters
+    // of the passes: changing them copies nothing.
+    let dir = std::env::temp_dir().join(format!("caustica-env-key-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    // Two equirectangular maps, 16×8: a warm sky over a dark floor, and a cool one.
+    let sky = |top: [u8; 3], bottom: [u8; 3]| {
+        image::RgbImage::from_fn(16, 8, |_, y| image::Rgb(if y < 4 { top } else { bottom }))
+    };
+    let warm = dir.join("warm.png");
+    let cool = dir.join("cool.png");
+    sky([240, 160, 60], [40, 20, 10]).save(&warm).unwrap();
+    sky([60, 120, 240], [10, 20, 40]).save(&cool).unwrap();
+    let image = |path: &std::path::Path, intensity: f32| Environment::Image {
+        path: path.to_path_buf(),
+        intensity,
+    };
+    let color = |c: f32| Environment::Color { color: [c, 0.5, 0.2] };
+
+    // The Luneburg lens floats in front of the sky: the map shows around it and through it.
+    let mut scene = builtin("luneburg").unwrap().scene;
+    scene.volume = VolumeSource::builtin("luneburg", 32);
+    let mut p = PreparedScene::load(&scene).unwrap();
+    let mut gpu = Gpu::new();
+    let req = RenderRequest::new(48, 40);
+    let volume_bytes = gpu.render(&p, &req).stats.upload_bytes;
+    assert!(
+        volume_bytes > 32 * 32 * 32 * 2,
+        "a new scene copies its volumes: {volume_bytes} bytes"
+    );
+
+    // (environment, whether it brings another map)
+    let steps = [
+        (image(&warm, 1.0), true),
+        (image(&cool, 1.0), true),
+        (image(&cool, 2.5), false),
+        (image(&warm, 2.5), true),
+        (color(0.1), true),
+        (color(0.9), false),
+        (Environment::Studio { intensity: 0.5 }, true),
+        (Environment::Studio { intensity: 1.5 }, false),
+    ];
+    for (environment, new_map) in steps {
+        let before = gpu.render(&p, &req).image.pixels;
+        // As the viewer's worker does when the scene's environment changes.
+        p.scene.environment = environment.clone();
+        p.env = EnvMap::for_scene(&p.scene.environment).unwrap();
+        let out = gpu.render(&p, &req);
+        assert_ne!(out.image.pixels, before, "{environment:?} changes the image");
+        assert_eq!(out.image.pixels, fresh(&p), "{environment:?}");
+        // The map's mip levels as 16-bit rgba texels (one black texel for a colour).
+        let map_bytes = p
+            .env
+            .as_ref()
+            .map_or(8, |e| e.levels.iter().map(|(w, h, _)| (w * h) as u64 * 8).sum::<u64>());
+        let expected = if new_map { map_bytes } else { 0 };
+        assert_eq!(out.stats.upload_bytes, expected, "{environment:?}: bytes copied in");
+    }
+    // A transfer-function edit and another map at once: the tables and the map are copied.
+    p.tf.opacity.points = vec![[0.0, 0.0], [0.3, 0.8]];
+    p.scene.environment = image(&cool, 1.0);
+    p.env = EnvMap::for_scene(&p.scene.environment).unwrap();
+    let out = gpu.render(&p, &req);
+    assert_eq!(out.image.pixels, fresh(&p), "an edit and another map");
+    let map_bytes = p
+        .env
+        .as_ref()
+        .unwrap()
+        .levels
+        .iter()
+        .map(|(w, h, _)| (w * h) as u64 * 8)
+        .sum::<u64>();
+    let table_bytes = 2 * (TABLE_SIZE * TABLE_SIZE * 8) as u64;
+    assert_eq!(
+        out.stats.upload_bytes,
+        table_bytes + map_bytes,
+        "an edit and another map"
+    );
+    gpu.assert_clean();
+    std::fs::remove_dir_all(&dir).ok();
 }

@@ -1016,6 +1016,7 @@ pub(super) fn run(
             key = key.with_axes(axes);
         }
     }
+    let environment = key.environment().clone();
     let mut pending = None;
     match cache.as_mut() {
         Some(c) if c.matches(&key) => {}
@@ -1060,6 +1061,14 @@ pub(super) fn run(
             *cache = Some(CachedTextures::new(key, textures));
             pending = Some(upload);
         }
+    }
+    if let Some(c) = cache.as_mut().filter(|c| !c.matches_environment(&environment)) {
+        // Another environment map (a switch of image, or to the studio): the volumes stay.
+        let env = c.replace_environment(ctx, prepared.env.as_ref(), environment)?;
+        pending = Some(match pending {
+            Some(p) => p.and(env),
+            None => env,
+        });
     }
     let upload_bytes = pending.as_ref().map_or(0, |p| p.bytes());
     let cached = cache

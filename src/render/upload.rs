@@ -16,6 +16,10 @@ use super::occupancy::{Grown, Occupancy, ValueRanges};
 
 type Levels = Vec<(u64, [u32; 3])>;
 
+/// What one staging buffer holds: (index into [`SceneTextures::images`], (staging offset,
+/// extent) per mip level).
+type StagedImages = Vec<(usize, Levels)>;
+
 /// Everything sampled by the passes, uploaded once per render.
 pub struct SceneTextures {
     pub volume: Image,
@@ -93,9 +97,8 @@ impl Untouched {
 
 /// The contents of freshly created [`SceneTextures`], staged for [`SceneTextures::record_upload`].
 pub struct PendingUpload {
-    staging: Arc<Buffer>,
-    /// (index into [`SceneTextures::images`], (staging offset, extent) per mip level)
-    uploads: Vec<(usize, Levels)>,
+    /// Each staging buffer with what it holds.
+    parts: Vec<(Arc<Buffer>, StagedImages)>,
 }
 
 /// Texels to stage, owned: a volume's are written once, straight into the mapped staging
@@ -182,6 +185,40 @@ fn tables(ctx: &Arc<Context>, texels: &TableTexels, staging: &mut Staging) -> Re
     ])
 }
 
+/// The environment map's image, its mip levels staged in `staging`: one black texel where
+/// the background is a plain colour, which reads no map.
+fn env_image(ctx: &Arc<Context>, env: Option<&EnvMap>, staging: &mut Staging) -> Result<(Image, Levels), GpuError> {
+    let fallback;
+    let env_levels: &[(u32, u32, Vec<[f32; 4]>)] = match env {
+        Some(e) => &e.levels,
+        None => {
+            fallback = vec![(1u32, 1u32, vec![[0.0f32; 4]])];
+            &fallback
+        }
+    };
+    let (w0, h0) = (env_levels[0].0, env_levels[0].1);
+    let image = Image::new(
+        ctx,
+        ImageDesc::sampled(
+            "environment",
+            Format::R16G16B16A16_SFLOAT,
+            [w0, h0, 1],
+            false,
+            env_levels.len() as u32,
+        ),
+    )?;
+    let levels = env_levels
+        .iter()
+        .map(|(w, h, px)| {
+            (
+                staging.push_owned(Box::new(halves(px.iter().flatten().copied()))),
+                [*w, *h, 1],
+            )
+        })
+        .collect();
+    Ok((image, levels))
+}
+
 /// 16-bit floats for the tables and the environment map, saturated at the largest finite
 /// half (65504): a brighter pixel of an HDR environment image would otherwise become
 /// infinite on the GPU.
@@ -252,9 +289,21 @@ fn half_of<T: super::coarse::Channels>(texels: &[T], dims: [usize; 3], coarse: b
 pub type EtaSource<'a> = (Option<(&'a Volume, [f32; 2])>, Gradient);
 
 impl PendingUpload {
+    fn new(staging: Buffer, uploads: StagedImages) -> Self {
+        PendingUpload {
+            parts: vec![(Arc::new(staging), uploads)],
+        }
+    }
+
     /// Bytes staged for the copy.
     pub fn bytes(&self) -> u64 {
-        self.staging.size
+        self.parts.iter().map(|(staging, _)| staging.size).sum()
+    }
+
+    /// This upload and `other` (of other images) in one.
+    pub fn and(mut self, other: PendingUpload) -> PendingUpload {
+        self.parts.extend(other.parts);
+        self
     }
 }
 
@@ -364,36 +413,8 @@ impl SceneTextures {
             staged.images.push(img);
         }
 
-        let fallback;
-        let env_levels: &[(u32, u32, Vec<[f32; 4]>)] = match env {
-            Some(e) => &e.levels,
-            None => {
-                fallback = vec![(1u32, 1u32, vec![[0.0f32; 4]])];
-                &fallback
-            }
-        };
-        let (w0, h0) = (env_levels[0].0, env_levels[0].1);
-        let img = Image::new(
-            ctx,
-            ImageDesc::sampled(
-                "environment",
-                Format::R16G16B16A16_SFLOAT,
-                [w0, h0, 1],
-                false,
-                env_levels.len() as u32,
-            ),
-        )?;
-        let levels = env_levels
-            .iter()
-            .map(|(w, h, px)| {
-                (
-                    staged
-                        .staging
-                        .push_owned(Box::new(halves(px.iter().flatten().copied()))),
-                    [*w, *h, 1],
-                )
-            })
-            .collect();
+        let (img, levels) = env_image(ctx, env, &mut staged.staging)?;
+        let env_levels = levels.len() as u32;
         staged.uploads.push((staged.images.len(), levels));
         staged.images.push(img);
 
@@ -463,7 +484,7 @@ impl SceneTextures {
             particle_table,
             medium_table,
             env,
-            env_levels: env_levels.len() as u32,
+            env_levels,
             linear_clamp,
             volume_sampler,
             env_sampler,
@@ -474,11 +495,7 @@ impl SceneTextures {
             kept_tables: vec![table_texels],
             untouched,
         };
-        let pending = PendingUpload {
-            staging: Arc::new(buffer),
-            uploads,
-        };
-        Ok((textures, pending))
+        Ok((textures, PendingUpload::new(buffer, uploads)))
     }
 
     /// Replaces the pre-integrated tables with those for another sample distance (the
@@ -514,10 +531,7 @@ impl SceneTextures {
             .into_iter()
             .filter_map(|(table, offset)| Some((at(table)?, vec![(offset, table.desc.extent)])))
             .collect();
-        Ok(PendingUpload {
-            staging: Arc::new(staging.into_buffer(ctx)?),
-            uploads,
-        })
+        Ok(PendingUpload::new(staging.into_buffer(ctx)?, uploads))
     }
 
     /// Brings the textures up to date with other transfer functions whose η is the same (the
@@ -539,6 +553,20 @@ impl SceneTextures {
         // Tables of the old transfer functions are of no use any more.
         self.kept_tables.clear();
         self.replace_tables(ctx, tf, sample_distance)
+    }
+
+    /// Replaces the environment map with `env`'s and stages it; the rest stays.
+    fn replace_environment(&mut self, ctx: &Arc<Context>, env: Option<&EnvMap>) -> Result<PendingUpload, GpuError> {
+        let mut staging = Staging::default();
+        let (image, levels) = env_image(ctx, env, &mut staging)?;
+        self.env_levels = levels.len() as u32;
+        self.env = image;
+        let index = self
+            .images()
+            .iter()
+            .position(|i| std::ptr::eq(*i, &self.env))
+            .ok_or_else(missing)?;
+        Ok(PendingUpload::new(staging.into_buffer(ctx)?, vec![(index, levels)]))
     }
 
     /// Bytes of device memory the textures and the brick flags hold.
@@ -589,14 +617,17 @@ impl SceneTextures {
     pub fn record_upload<'r>(&'r self, rec: &mut Recorder<'r>, pending: PendingUpload) {
         let images = self.images();
         let staged: Vec<&Image> = pending
-            .uploads
+            .parts
             .iter()
+            .flat_map(|(_, uploads)| uploads)
             .filter_map(|(index, _)| images.get(*index).copied())
             .collect();
         rec.init_layout(&staged);
-        for (index, levels) in &pending.uploads {
-            if let Some(image) = images.get(*index) {
-                rec.upload(&pending.staging, image, levels);
+        for (staging, uploads) in &pending.parts {
+            for (index, levels) in uploads {
+                if let Some(image) = images.get(*index) {
+                    rec.upload(staging, image, levels);
+                }
             }
         }
         rec.transfer_to_compute();
@@ -615,7 +646,7 @@ pub struct TexturesKey {
     window: [f32; 2],
     tf: TransferFunctions,
     sample_distance: f32,
-    environment: crate::scene::Environment,
+    environment: EnvSource,
     /// The volumes have (or are asked for) their half-resolution level.
     coarse: bool,
     /// The volume's axes as the textures lay them out (`ViewSetup::memory_axes`).
@@ -633,7 +664,7 @@ impl TexturesKey {
             window: prepared.window(),
             tf: prepared.tf.clone(),
             sample_distance: prepared.scene.quality.sample_distance,
-            environment: prepared.scene.environment.clone(),
+            environment: EnvSource::of(&prepared.scene.environment),
             coarse,
             axes,
         }
@@ -642,6 +673,11 @@ impl TexturesKey {
     /// The same with the textures laying the volume's axes out as `axes`.
     pub fn with_axes(self, axes: [usize; 3]) -> Self {
         TexturesKey { axes, ..self }
+    }
+
+    /// What the environment map is made from.
+    pub fn environment(&self) -> &EnvSource {
+        &self.environment
     }
 
     /// Whether the volumes are asked for their half-resolution level.
@@ -678,8 +714,29 @@ impl TexturesKey {
             && self.orientation == other.orientation
             && self.window == other.window
             && (self.gradient.is_none() || self.tf.eta == other.tf.eta)
-            && self.environment == other.environment
             && (self.coarse || !other.coarse)
+    }
+}
+
+/// What the environment map's texels are made from. Its intensity and a background colour are
+/// parameters of the passes: changing them (the viewer's sliders) keeps the map, and changing
+/// the map keeps the volumes ([`CachedTextures::replace_environment`]).
+#[derive(Clone, Debug, PartialEq)]
+pub enum EnvSource {
+    Studio,
+    Image(std::path::PathBuf),
+    /// A plain colour, which reads no map.
+    None,
+}
+
+impl EnvSource {
+    fn of(environment: &crate::scene::Environment) -> Self {
+        use crate::scene::Environment as E;
+        match environment {
+            E::Studio { .. } => EnvSource::Studio,
+            E::Image { path, .. } => EnvSource::Image(path.clone()),
+            E::Color { .. } => EnvSource::None,
+        }
     }
 }
 
@@ -800,9 +857,11 @@ impl CachedTextures {
     ) -> Result<PendingUpload, GpuError> {
         self.uploaded.set(false);
         let pending = update(&mut self.textures)?;
-        // The volume images stay, with whatever levels they have.
+        // The volume images stay, with whatever levels they have, and so does the environment
+        // map ([`CachedTextures::replace_environment`]).
         self.key = TexturesKey {
             coarse: self.key.coarse,
+            environment: self.key.environment.clone(),
             ..key
         };
         Ok(pending)
@@ -826,6 +885,26 @@ impl CachedTextures {
         self.grown.clear();
         let sample_distance = key.sample_distance;
         self.replace(key, |t| t.replace_transfer(ctx, tf, sample_distance))
+    }
+
+    /// Whether the environment map is the one `key` asks for. The other `matches` leave the
+    /// map out: [`CachedTextures::replace_environment`] brings it up to date on its own.
+    pub fn matches_environment(&self, environment: &EnvSource) -> bool {
+        self.key.environment == *environment
+    }
+
+    /// A new environment map, `env`, made from `environment`; the rest is kept. Until the
+    /// returned upload has executed nothing matches.
+    pub fn replace_environment(
+        &mut self,
+        ctx: &Arc<Context>,
+        env: Option<&EnvMap>,
+        environment: EnvSource,
+    ) -> Result<PendingUpload, GpuError> {
+        self.uploaded.set(false);
+        let pending = self.textures.replace_environment(ctx, env)?;
+        self.key.environment = environment;
+        Ok(pending)
     }
 
     /// The textures' occupied cells grown by `margin` (`GrowthCache::grown`).
