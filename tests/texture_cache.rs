@@ -101,22 +101,57 @@ fn a_transfer_function_edit_keeps_the_volume_images_unless_eta_changes() {
     // An edit of opacity, colour or the medium changes only the pre-integrated tables, the
     // bricks and the occupied cells: the volume, gradient and orientation volumes are kept and
     // only the two tables are copied in (16-bit rgba texels, TABLE_SIZE² each). An edit of η
-    // remakes the gradient volume, and everything is copied again. Each image must be the
-    // fresh renderer's.
+    // remakes the gradient volume too, and it alone of the volumes is copied in again (16-bit
+    // rgba texels, with its half level where there is one). Each image must be the fresh
+    // renderer's.
     // At `quality.volume_level` 1 the half level's bricks and occupied cells are remade as
     // well (they reach further than the full resolution's).
+    // Then without the objects' η volume, η taken from the volume itself as from a CT, with
+    // the textures laying the volume's axes out for a side view.
     for level in [0, 1] {
-        transfer_edits_at_volume_level(level);
+        transfer_edits(prepared(), 0.0, None, level);
+    }
+    // A quarter of the volume along x is cleared to air, so that laying its axes out the
+    // other way round (x for z) gives another gradient volume: the ball lens alone is the
+    // same either way.
+    for level in [0, 1] {
+        let mut own_eta = prepared();
+        own_eta.eta_volume = None;
+        let mut volume = (*own_eta.volume).clone();
+        let nx = volume.dims[0];
+        for (i, v) in volume.data.iter_mut().enumerate() {
+            if i % nx < nx / 4 {
+                *v = 0.0;
+            }
+        }
+        own_eta.volume = Arc::new(volume);
+        transfer_edits(own_eta, 90.0, Some([2, 1, 0]), level);
     }
 }
 
-fn transfer_edits_at_volume_level(level: u32) {
+/// The edits on `p` seen from `yaw_deg`, for which the textures lay the volume's axes out as
+/// `axes` (`RenderStats::volume_axes`), with `quality.volume_level` at `level`.
+fn transfer_edits(mut p: PreparedScene, yaw_deg: f32, axes: Option<[u8; 3]>, level: u32) {
     let table_bytes = 2 * (TABLE_SIZE * TABLE_SIZE * 8) as u64;
     let mut gpu = Gpu::new();
     let req = RenderRequest::new(48, 40);
-    let mut p = prepared();
+    p.scene.camera.yaw_deg = yaw_deg;
     p.scene.quality.volume_level = level;
-    let full = gpu.render(&p, &req).stats.upload_bytes;
+    // With η from the volume: the glass's index at first the air's and the ground's raised, so
+    // that η changes at the ground alone (its faces at the volume's border).
+    let glass_eta = p.eta_volume.is_none().then(|| {
+        let glass = p.tf.eta.points.clone();
+        p.tf.eta.points = vec![[0.0, 1.0], [0.8, 1.0], [1.0, 1.3]];
+        glass
+    });
+    let first = gpu.render(&p, &req).stats;
+    let full = first.upload_bytes;
+    assert_eq!(first.volume_axes, axes);
+    // The gradient volume has the η volume's dims (the volume's), its half level half of them.
+    let texels = |d: [usize; 3]| (d[0] * d[1] * d[2]) as u64;
+    let dims = p.volume.dims;
+    let half_dims = caustica::volume::half_level_dims(dims);
+    let gradient_bytes = 8 * (texels(dims) + if level > 0 { texels(half_dims) } else { 0 });
     assert!(
         full > table_bytes + 32 * 32 * 32 * 2,
         "a new scene copies its volumes: {full} bytes"
@@ -124,7 +159,7 @@ fn transfer_edits_at_volume_level(level: u32) {
     assert!(gpu.render(&p, &req).stats.features.refraction);
     assert_eq!(gpu.render(&p, &req).stats.upload_bytes, 0, "nothing changed");
 
-    let edits: Vec<(&str, Edit, bool)> = vec![
+    let mut edits: Vec<(&str, Edit, bool)> = vec![
         (
             "opacity",
             Box::new(|p: &mut PreparedScene| p.tf.opacity.points = vec![[0.0, 0.0], [0.3, 0.8]]),
@@ -156,6 +191,19 @@ fn transfer_edits_at_volume_level(level: u32) {
             true,
         ),
     ];
+    if let Some(glass) = glass_eta {
+        // The glass's index back, before the clear values absorb: the glass, which is clear,
+        // bends light where the bricks and cells made so far had it bend nothing.
+        edits.insert(
+            0,
+            (
+                "η of the glass",
+                Box::new(move |p: &mut PreparedScene| p.tf.eta.points = glass.clone()),
+                true,
+            ),
+        );
+    }
+    // (name, edit, whether it remakes the gradient volume)
     for (name, edit, remade) in edits {
         let before = gpu.render(&p, &req).image.pixels;
         edit(&mut p);
@@ -164,11 +212,21 @@ fn transfer_edits_at_volume_level(level: u32) {
             out.image.pixels != before,
             "level {level}, {name}: the edit changes the image"
         );
+        let fresh = Gpu::new().render(&p, &req);
         assert!(
-            out.image.pixels == fresh(&p),
+            out.image.pixels == fresh.image.pixels,
             "level {level}, {name}: not the fresh renderer's image"
         );
-        let expected = if remade { full } else { table_bytes };
+        // The light's tiles start where their beams come near the cells where η changes.
+        assert_eq!(
+            out.stats.light_steps, fresh.stats.light_steps,
+            "level {level}, {name}: light tile steps"
+        );
+        let expected = if remade {
+            gradient_bytes + table_bytes
+        } else {
+            table_bytes
+        };
         assert_eq!(
             out.stats.upload_bytes, expected,
             "level {level}, {name}: bytes copied in"

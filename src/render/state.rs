@@ -1017,6 +1017,18 @@ pub(super) fn run(
         }
     }
     let environment = key.environment().clone();
+    // The textures lay the volumes out as suits the view (`ViewSetup::memory_axes`).
+    fn in_layout(v: &crate::volume::Volume, axes: [usize; 3]) -> std::borrow::Cow<'_, crate::volume::Volume> {
+        if axes == [0, 1, 2] {
+            std::borrow::Cow::Borrowed(v)
+        } else {
+            std::borrow::Cow::Owned(v.with_axes(axes))
+        }
+    }
+    let eta_in_layout = |axes| match (&prepared.eta_volume, features.eta_volume) {
+        (Some(v), true) => Some(in_layout(v.as_ref(), axes)),
+        _ => None,
+    };
     let mut pending = None;
     match cache.as_mut() {
         Some(c) if c.matches(&key) => {}
@@ -1029,23 +1041,20 @@ pub(super) fn run(
             // cells; the volume images are kept.
             pending = Some(c.replace_transfer(ctx, &prepared.tf, key)?);
         }
+        Some(c) if features.refraction && c.matches_but_eta(&key) => {
+            // Another η (the editor): the gradient volume is made again, and the tables,
+            // bricks and cells; the volume and orientation volumes are kept.
+            let laid_out = in_layout(vol, view.memory_axes);
+            let eta_laid_out = eta_in_layout(view.memory_axes);
+            let eta_source = eta_laid_out.as_deref().map(|v| (v, v.value_range));
+            pending = Some(c.replace_eta(ctx, &laid_out, (eta_source, features.gradient), &prepared.tf, key)?);
+        }
         _ => {
             *cache = None; // free the old textures before allocating new ones
 
-            // The textures lay the volumes out as suits the view (`ViewSetup::memory_axes`).
             let axes = view.memory_axes;
-            fn in_layout(v: &crate::volume::Volume, axes: [usize; 3]) -> std::borrow::Cow<'_, crate::volume::Volume> {
-                if axes == [0, 1, 2] {
-                    std::borrow::Cow::Borrowed(v)
-                } else {
-                    std::borrow::Cow::Owned(v.with_axes(axes))
-                }
-            }
             let laid_out = in_layout(vol, axes);
-            let eta_laid_out = match (&prepared.eta_volume, features.eta_volume) {
-                (Some(v), true) => Some(in_layout(v.as_ref(), axes)),
-                _ => None,
-            };
+            let eta_laid_out = eta_in_layout(axes);
             let eta_source = eta_laid_out.as_deref().map(|v| (v, v.value_range));
             let (textures, upload) = SceneTextures::upload(
                 ctx,

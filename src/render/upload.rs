@@ -7,7 +7,7 @@ use half::f16;
 
 use crate::gpu::{Buffer, Context, Format, GpuError, Image, ImageDesc, Recorder, Sampler, SamplerDesc};
 use crate::scene::Gradient;
-use crate::transfer::{preintegrate, TransferFunctions, TABLE_SIZE};
+use crate::transfer::{preintegrate, Curve, TransferFunctions, TABLE_SIZE};
 use crate::volume::Volume;
 
 use super::environment::EnvMap;
@@ -288,6 +288,53 @@ fn half_of<T: super::coarse::Channels>(texels: &[T], dims: [usize; 3], coarse: b
 /// the volume itself), and the difference scheme.
 pub type EtaSource<'a> = (Option<(&'a Volume, [f32; 2])>, Gradient);
 
+/// The gradient volume (`gradient.rs`) with its half-resolution level where asked for, and
+/// where each level bends light: per brick and per occupied cell.
+struct Refracting {
+    extent: [u32; 3],
+    texels: Vec<[f16; 4]>,
+    half: Option<Vec<[f16; 4]>>,
+    /// The bricks where η changes (one word each) and the cells.
+    bending: (Vec<u32>, Occupancy),
+    half_bending: Option<(Vec<u32>, Occupancy)>,
+}
+
+impl Refracting {
+    /// From `source`'s η volume, else from `samples`, the volume's (of `dims` voxels, in
+    /// `bricks` bricks), under `eta`; with `coarse`, the half-resolution level too.
+    fn new(
+        samples: &[u16],
+        dims: [usize; 3],
+        bricks: [usize; 3],
+        source: EtaSource<'_>,
+        eta: &Curve,
+        coarse: bool,
+    ) -> Self {
+        let (eta_source, scheme) = source;
+        let (g_dims, texels) = match eta_source {
+            Some((ev, w)) => (ev.dims, gradient_volume(&ev.normalized_u16(w), ev.dims, eta, scheme)),
+            None => (dims, gradient_volume(samples, dims, eta, scheme)),
+        };
+        // Where η changes, as read from `texels` of `g_dims` voxels.
+        let bending = |texels: &[[f16; 4]], g_dims: [usize; 3]| {
+            let mut bends = super::bricks::Bricks {
+                flags: vec![0; bricks.iter().product()],
+                dims: bricks.map(|n| n as u32),
+            };
+            super::bricks::add_refracting(&mut bends, dims, texels, g_dims);
+            (bends.flags, Occupancy::refracting(texels, g_dims))
+        };
+        let half = half_of(&texels, g_dims, coarse);
+        Refracting {
+            extent: g_dims.map(|n| n as u32),
+            bending: bending(&texels, g_dims),
+            half_bending: half.as_ref().map(|h| bending(h, super::coarse::half_dims(g_dims))),
+            half,
+            texels,
+        }
+    }
+}
+
 impl PendingUpload {
     fn new(staging: Buffer, uploads: StagedImages) -> Self {
         PendingUpload {
@@ -343,31 +390,14 @@ impl SceneTextures {
 
         let mut gradient_half = None;
         let (gradient_extent, gradient_texels) = match refraction {
-            Some((eta_source, scheme)) => {
-                let (dims, g) = match eta_source {
-                    Some((ev, w)) => (
-                        ev.dims,
-                        gradient_volume(&ev.normalized_u16(w), ev.dims, &tf.eta, scheme),
-                    ),
-                    None => (volume.dims, gradient_volume(&samples, volume.dims, &tf.eta, scheme)),
-                };
-                let bricks = brick_ranges.cells();
-                // Where η changes, as read from `texels` of `dims` voxels.
-                let bending = |texels: &[[f16; 4]], dims: [usize; 3]| {
-                    let mut bends = super::bricks::Bricks {
-                        flags: vec![0; bricks.iter().product()],
-                        dims: bricks.map(|n| n as u32),
-                    };
-                    super::bricks::add_refracting(&mut bends, volume.dims, texels, dims);
-                    (bends.flags, Occupancy::refracting(texels, dims))
-                };
-                refracting = Some(bending(&g, dims));
-                let g_half = half_of(&g, dims, coarse);
-                if let (Some(h), Some(gh)) = (half_ranges.as_mut(), g_half.as_ref()) {
-                    h.refracting = Some(bending(gh, super::coarse::half_dims(dims)));
+            Some(source) => {
+                let g = Refracting::new(&samples, volume.dims, brick_ranges.cells(), source, &tf.eta, coarse);
+                refracting = Some(g.bending);
+                if let (Some(h), Some(bending)) = (half_ranges.as_mut(), g.half_bending) {
+                    h.refracting = Some(bending);
                 }
-                gradient_half = g_half;
-                ([dims[0] as u32, dims[1] as u32, dims[2] as u32], g)
+                gradient_half = g.half;
+                (g.extent, g.texels)
             }
             None => ([1, 1, 1], vec![[half::f16::ZERO; 4]]),
         };
@@ -555,6 +585,69 @@ impl SceneTextures {
         self.replace_tables(ctx, tf, sample_distance)
     }
 
+    /// Brings the textures up to date with transfer functions of another η: the gradient
+    /// volume (and its half level where there is one) is made again from `refraction`'s
+    /// source, else from `volume`'s samples under `window`, then [`SceneTextures::replace_transfer`]
+    /// does the rest. The volume and orientation volumes and the environment stay: on the CT
+    /// head they are about half of what a new scene makes and copies.
+    #[allow(clippy::too_many_arguments)]
+    fn replace_eta(
+        &mut self,
+        ctx: &Arc<Context>,
+        volume: &Volume,
+        window: [f32; 2],
+        refraction: EtaSource<'_>,
+        tf: &TransferFunctions,
+        sample_distance: f32,
+        coarse: bool,
+    ) -> Result<PendingUpload, GpuError> {
+        let samples = match refraction.0 {
+            Some(_) => Vec::new(),
+            None => volume.normalized_u16(window),
+        };
+        let g = Refracting::new(
+            &samples,
+            volume.dims,
+            self.untouched.brick_ranges.cells(),
+            refraction,
+            &tf.eta,
+            coarse,
+        );
+        let mut staging = Staging::default();
+        let label = "gradient volume";
+        let format = Format::R16G16B16A16_SFLOAT;
+        self.gradient = Image::new(ctx, ImageDesc::sampled(label, format, g.extent, true, 1))?;
+        let mut staged = vec![(g.extent, staging.push_owned(Box::new(g.texels)))];
+        self.half[1] = match g.half {
+            Some(h) => {
+                let extent = super::coarse::half_dims(g.extent.map(|n| n as usize)).map(|n| n as u32);
+                staged.push((extent, staging.push_owned(Box::new(h))));
+                let desc = ImageDesc::sampled(&format!("{label} at half resolution"), format, extent, true, 1);
+                Some(Image::new(ctx, desc)?)
+            }
+            None => None,
+        };
+        self.untouched.refracting = Some(g.bending);
+        if let Some(h) = self.untouched.half.as_mut() {
+            h.refracting = g.half_bending;
+        }
+        let images = self.images();
+        let uploads = [Some(&self.gradient), self.half[1].as_ref()]
+            .into_iter()
+            .flatten()
+            .zip(staged)
+            .map(|(image, (extent, offset))| {
+                let at = images
+                    .iter()
+                    .position(|i| std::ptr::eq(*i, image))
+                    .ok_or_else(missing)?;
+                Ok((at, vec![(offset, extent)]))
+            })
+            .collect::<Result<_, GpuError>>()?;
+        let gradient = PendingUpload::new(staging.into_buffer(ctx)?, uploads);
+        Ok(gradient.and(self.replace_transfer(ctx, tf, sample_distance)?))
+    }
+
     /// Replaces the environment map with `env`'s and stages it; the rest stays.
     fn replace_environment(&mut self, ctx: &Arc<Context>, env: Option<&EnvMap>) -> Result<PendingUpload, GpuError> {
         let mut staging = Staging::default();
@@ -703,6 +796,17 @@ impl TexturesKey {
 
     /// [`TexturesKey::same_but_transfer`] whatever the layout of the volume's axes.
     fn same_but_transfer_and_layout(&self, other: &TexturesKey) -> bool {
+        self.same_but_eta_and_layout(other) && (self.gradient.is_none() || self.tf.eta == other.tf.eta)
+    }
+
+    /// The same but for the transfer functions, η included, and the sample distance: what
+    /// [`SceneTextures::replace_eta`] brings up to date.
+    fn same_but_eta(&self, other: &TexturesKey) -> bool {
+        self.axes == other.axes && self.same_but_eta_and_layout(other)
+    }
+
+    /// [`TexturesKey::same_but_eta`] whatever the layout of the volume's axes.
+    fn same_but_eta_and_layout(&self, other: &TexturesKey) -> bool {
         let eta_same = match (&self.eta_volume, &other.eta_volume) {
             (Some(a), Some(b)) => Arc::ptr_eq(a, b),
             (None, None) => true,
@@ -713,7 +817,6 @@ impl TexturesKey {
             && self.gradient == other.gradient
             && self.orientation == other.orientation
             && self.window == other.window
-            && (self.gradient.is_none() || self.tf.eta == other.tf.eta)
             && (self.coarse || !other.coarse)
     }
 }
@@ -905,6 +1008,30 @@ impl CachedTextures {
         let pending = self.textures.replace_environment(ctx, env)?;
         self.key.environment = environment;
         Ok(pending)
+    }
+
+    /// Whether the textures differ from `key`'s only in the transfer functions, η among them,
+    /// and the sample distance: [`CachedTextures::replace_eta`] brings them up to date.
+    pub fn matches_but_eta(&self, key: &TexturesKey) -> bool {
+        self.uploaded.get() && self.key.same_but_eta(key)
+    }
+
+    /// A new gradient volume, tables, bricks and occupied cells for `key`'s transfer
+    /// functions (`SceneTextures::replace_eta`; `volume` laid out as the textures lay it out);
+    /// until the returned upload has executed nothing matches.
+    pub fn replace_eta(
+        &mut self,
+        ctx: &Arc<Context>,
+        volume: &Volume,
+        refraction: EtaSource<'_>,
+        tf: &TransferFunctions,
+        key: TexturesKey,
+    ) -> Result<PendingUpload, GpuError> {
+        self.grown.clear();
+        let (window, sample_distance, coarse) = (key.window, key.sample_distance, self.key.coarse);
+        self.replace(key, |t| {
+            t.replace_eta(ctx, volume, window, refraction, tf, sample_distance, coarse)
+        })
     }
 
     /// The textures' occupied cells grown by `margin` (`GrowthCache::grown`).
