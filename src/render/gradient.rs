@@ -56,7 +56,8 @@ pub fn gradient_volume(samples: &[u16], dims: [usize; 3], eta: &Curve, scheme: G
     };
     // How far the scheme reaches: voxels at least this far from every face read no outside
     // value, and take their neighbours at fixed offsets without the bounds tests (the same
-    // values and operations: the same texels, about three times as fast).
+    // values and operations: the same texels; the CT head's gradient volume in about 130 ms
+    // instead of 225 on 2 cores).
     let reach = match scheme {
         Gradient::FourthOrder => 2,
         Gradient::Central | Gradient::Forward => 1,
@@ -94,7 +95,7 @@ pub fn gradient_volume(samples: &[u16], dims: [usize; 3], eta: &Curve, scheme: G
                 };
                 slice[row + x] = texel(d, c);
             }
-            for x in (0..nx as isize).filter(|x| !inner.contains(&(*x as usize))) {
+            for x in (0..inner.start as isize).chain(inner.end as isize..nx as isize) {
                 let c = at(x, y, z);
                 let d = match scheme {
                     Gradient::Central => [
