@@ -311,6 +311,17 @@ fn an_environment_change_replaces_the_map_alone_and_its_parameters_nothing() {
         intensity,
     };
     let color = |c: f32| Environment::Color { color: [c, 0.5, 0.2] };
+    // As the viewer's worker does when the scene's environment changes.
+    let set = |p: &mut PreparedScene, environment: Environment| {
+        p.scene.environment = environment;
+        p.env = EnvMap::for_scene(&p.scene.environment).unwrap();
+    };
+    // The map's mip levels as 16-bit rgba texels (one black texel for a colour).
+    let map_bytes = |p: &PreparedScene| {
+        p.env
+            .as_ref()
+            .map_or(8, |e| e.levels.iter().map(|(w, h, _)| (w * h) as u64 * 8).sum::<u64>())
+    };
 
     // The Luneburg lens floats in front of the sky: the map shows around it and through it.
     let mut scene = builtin("luneburg").unwrap().scene;
@@ -337,38 +348,22 @@ fn an_environment_change_replaces_the_map_alone_and_its_parameters_nothing() {
     ];
     for (environment, new_map) in steps {
         let before = gpu.render(&p, &req).image.pixels;
-        // As the viewer's worker does when the scene's environment changes.
-        p.scene.environment = environment.clone();
-        p.env = EnvMap::for_scene(&p.scene.environment).unwrap();
+        set(&mut p, environment.clone());
         let out = gpu.render(&p, &req);
         assert_ne!(out.image.pixels, before, "{environment:?} changes the image");
         assert_eq!(out.image.pixels, fresh(&p), "{environment:?}");
-        // The map's mip levels as 16-bit rgba texels (one black texel for a colour).
-        let map_bytes = p
-            .env
-            .as_ref()
-            .map_or(8, |e| e.levels.iter().map(|(w, h, _)| (w * h) as u64 * 8).sum::<u64>());
-        let expected = if new_map { map_bytes } else { 0 };
+        let expected = if new_map { map_bytes(&p) } else { 0 };
         assert_eq!(out.stats.upload_bytes, expected, "{environment:?}: bytes copied in");
     }
     // A transfer-function edit and another map at once: the tables and the map are copied.
     p.tf.opacity.points = vec![[0.0, 0.0], [0.3, 0.8]];
-    p.scene.environment = image(&cool, 1.0);
-    p.env = EnvMap::for_scene(&p.scene.environment).unwrap();
+    set(&mut p, image(&cool, 1.0));
     let out = gpu.render(&p, &req);
     assert_eq!(out.image.pixels, fresh(&p), "an edit and another map");
-    let map_bytes = p
-        .env
-        .as_ref()
-        .unwrap()
-        .levels
-        .iter()
-        .map(|(w, h, _)| (w * h) as u64 * 8)
-        .sum::<u64>();
     let table_bytes = 2 * (TABLE_SIZE * TABLE_SIZE * 8) as u64;
     assert_eq!(
         out.stats.upload_bytes,
-        table_bytes + map_bytes,
+        table_bytes + map_bytes(&p),
         "an edit and another map"
     );
     gpu.assert_clean();

@@ -613,35 +613,36 @@ impl SceneTextures {
             &tf.eta,
             coarse,
         );
-        let mut staging = Staging::default();
-        let label = "gradient volume";
-        let format = Format::R16G16B16A16_SFLOAT;
-        self.gradient = Image::new(ctx, ImageDesc::sampled(label, format, g.extent, true, 1))?;
-        let mut staged = vec![(g.extent, staging.push_owned(Box::new(g.texels)))];
-        self.half[1] = match g.half {
-            Some(h) => {
-                let extent = super::coarse::half_dims(g.extent.map(|n| n as usize)).map(|n| n as u32);
-                staged.push((extent, staging.push_owned(Box::new(h))));
-                let desc = ImageDesc::sampled(&format!("{label} at half resolution"), format, extent, true, 1);
-                Some(Image::new(ctx, desc)?)
-            }
-            None => None,
-        };
+        let mut staged = Staged::default();
+        let made_half = staged.volume(
+            ctx,
+            "gradient volume",
+            Format::R16G16B16A16_SFLOAT,
+            g.extent,
+            g.texels,
+            g.half,
+        )?;
+        let Staged {
+            staging,
+            uploads,
+            images,
+        } = staged;
+        let mut images = images.into_iter();
+        self.gradient = images.next().ok_or_else(missing)?;
+        self.half[1] = if made_half { images.next() } else { None };
         self.untouched.refracting = Some(g.bending);
         if let Some(h) = self.untouched.half.as_mut() {
             h.refracting = g.half_bending;
         }
-        let images = self.images();
-        let uploads = [Some(&self.gradient), self.half[1].as_ref()]
+        // The staged images' places among all the textures'.
+        let placed = [Some(&self.gradient), self.half[1].as_ref()];
+        let all = self.images();
+        let uploads = uploads
             .into_iter()
-            .flatten()
-            .zip(staged)
-            .map(|(image, (extent, offset))| {
-                let at = images
-                    .iter()
-                    .position(|i| std::ptr::eq(*i, image))
-                    .ok_or_else(missing)?;
-                Ok((at, vec![(offset, extent)]))
+            .map(|(index, levels)| {
+                let image = placed.get(index).copied().flatten().ok_or_else(missing)?;
+                let at = all.iter().position(|i| std::ptr::eq(*i, image)).ok_or_else(missing)?;
+                Ok((at, levels))
             })
             .collect::<Result<_, GpuError>>()?;
         let gradient = PendingUpload::new(staging.into_buffer(ctx)?, uploads);
