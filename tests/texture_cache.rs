@@ -8,7 +8,7 @@ use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 
 use caustica::render::{PreparedScene, RenderError, RenderRequest};
-use caustica::scene::{builtin, EnvMap, Environment, VolumeSource};
+use caustica::scene::{builtin, EnvMap, Environment, Toggle, VolumeSource};
 use caustica::transfer::{ColorRamp, TABLE_SIZE};
 use common::Gpu;
 
@@ -106,6 +106,9 @@ fn a_transfer_function_edit_keeps_the_volume_images_unless_eta_changes() {
     // renderer's.
     // At `quality.volume_level` 1 the half level's bricks and occupied cells are remade as
     // well (they reach further than the full resolution's).
+    // Switching refraction off keeps the gradient volume, which a render without refraction
+    // does not read, and makes the bricks and occupied cells anew: nothing is copied in, and
+    // switching it on again copies nothing either, unless η changed in between.
     // Then without the objects' η volume, η taken from the volume itself as from a CT, with
     // the textures laying the volume's axes out for a side view.
     for level in [0, 1] {
@@ -159,18 +162,25 @@ fn transfer_edits(mut p: PreparedScene, yaw_deg: f32, axes: Option<[u8; 3]>, lev
     assert!(gpu.render(&p, &req).stats.features.refraction);
     assert_eq!(gpu.render(&p, &req).stats.upload_bytes, 0, "nothing changed");
 
-    let mut edits: Vec<(&str, Edit, bool)> = vec![
+    let refraction = p.scene.quality.refraction;
+    let scale_eta = |p: &mut PreparedScene| {
+        for point in &mut p.tf.eta.points {
+            point[1] = 1.0 + 0.8 * (point[1] - 1.0);
+        }
+    };
+    // (name, edit, bytes it copies in)
+    let mut edits: Vec<(&str, Edit, u64)> = vec![
         (
             "opacity",
             Box::new(|p: &mut PreparedScene| p.tf.opacity.points = vec![[0.0, 0.0], [0.3, 0.8]]),
-            false,
+            table_bytes,
         ),
         (
             // The clear values (the air around the lens) absorb now: bricks that were empty
             // are not any more.
             "opacity of the clear values",
             Box::new(|p: &mut PreparedScene| p.tf.opacity.points = vec![[0.0, 0.05], [0.3, 0.8]]),
-            false,
+            table_bytes,
         ),
         (
             "medium colour",
@@ -179,18 +189,32 @@ fn transfer_edits(mut p: PreparedScene, yaw_deg: f32, axes: Option<[u8; 3]>, lev
                     points: vec![[0.0, 1.0, 1.0, 1.0], [1.0, 0.6, 0.8, 0.9]],
                 }
             }),
-            false,
+            table_bytes,
         ),
-        (
-            "η",
-            Box::new(|p: &mut PreparedScene| {
-                for point in &mut p.tf.eta.points {
-                    point[1] = 1.0 + 0.8 * (point[1] - 1.0);
-                }
-            }),
-            true,
-        ),
+        ("η", Box::new(scale_eta), gradient_bytes + table_bytes),
     ];
+    if level == 1 {
+        // Switching refraction (at one level: the bricks and cells of both are made the same
+        // way, `Untouched::occupancy`), first, while the glass is clear: without refraction
+        // its bricks and cells are empty.
+        let set =
+            |toggle: Toggle| -> Edit { Box::new(move |p: &mut PreparedScene| p.scene.quality.refraction = toggle) };
+        let toggles: [(&str, Edit, u64); 4] = [
+            ("refraction off", set(Toggle::Off), 0),
+            ("refraction on", set(refraction), 0),
+            ("refraction off again", set(Toggle::Off), 0),
+            (
+                // The gradient volume kept is of the η before: it is made again.
+                "η, then refraction on",
+                Box::new(move |p: &mut PreparedScene| {
+                    scale_eta(p);
+                    p.scene.quality.refraction = refraction;
+                }),
+                gradient_bytes + table_bytes,
+            ),
+        ];
+        edits.splice(0..0, toggles);
+    }
     if let Some(glass) = glass_eta {
         // The glass's index back, before the clear values absorb: the glass, which is clear,
         // bends light where the bricks and cells made so far had it bend nothing.
@@ -199,12 +223,11 @@ fn transfer_edits(mut p: PreparedScene, yaw_deg: f32, axes: Option<[u8; 3]>, lev
             (
                 "η of the glass",
                 Box::new(move |p: &mut PreparedScene| p.tf.eta.points = glass.clone()),
-                true,
+                gradient_bytes + table_bytes,
             ),
         );
     }
-    // (name, edit, whether it remakes the gradient volume)
-    for (name, edit, remade) in edits {
+    for (name, edit, expected) in edits {
         let before = gpu.render(&p, &req).image.pixels;
         edit(&mut p);
         let out = gpu.render(&p, &req);
@@ -222,16 +245,36 @@ fn transfer_edits(mut p: PreparedScene, yaw_deg: f32, axes: Option<[u8; 3]>, lev
             out.stats.light_steps, fresh.stats.light_steps,
             "level {level}, {name}: light tile steps"
         );
-        let expected = if remade {
-            gradient_bytes + table_bytes
-        } else {
-            table_bytes
-        };
         assert_eq!(
             out.stats.upload_bytes, expected,
             "level {level}, {name}: bytes copied in"
         );
     }
+    gpu.assert_clean();
+    if level == 0 {
+        return;
+    }
+
+    // A renderer that starts without refraction makes the gradient volume alone (and the
+    // tables) when refraction is switched on: the volume and orientation volumes stay.
+    let mut gpu = Gpu::new();
+    p.scene.quality.refraction = Toggle::Off;
+    let before = gpu.render(&p, &req).image.pixels;
+    p.scene.quality.refraction = refraction;
+    let out = gpu.render(&p, &req);
+    assert!(
+        out.image.pixels != before,
+        "level {level}: refraction changes the image"
+    );
+    assert!(
+        out.image.pixels == Gpu::new().render(&p, &req).image.pixels,
+        "level {level}, refraction on after a start without: not the fresh renderer's image"
+    );
+    assert_eq!(
+        out.stats.upload_bytes,
+        gradient_bytes + table_bytes,
+        "level {level}, refraction on after a start without: bytes copied in"
+    );
     gpu.assert_clean();
 }
 

@@ -1032,6 +1032,11 @@ pub(super) fn run(
     let mut pending = None;
     match cache.as_mut() {
         Some(c) if c.matches(&key) => {}
+        Some(c) if c.matches_but_refraction(&key) => {
+            // Refraction switched off, or on again where the gradient volume it reads was
+            // kept: new bricks and cells, nothing copied in.
+            pending = Some(c.replace_occupancy(ctx, &prepared.tf, key)?);
+        }
         Some(c) if c.matches_but_tables(&key) => {
             // Another sample distance only (the viewer's levels): new tables, the rest kept.
             pending = Some(c.replace_tables(ctx, &prepared.tf, key)?);

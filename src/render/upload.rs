@@ -66,11 +66,11 @@ struct Untouched {
 
 impl Untouched {
     /// The bricks and the grids of occupied cells under `tf`: where its particles absorb or
-    /// show, and where η changes.
-    fn occupancy(&self, tf: &TransferFunctions) -> (super::bricks::Bricks, Vec<Occupancy>) {
+    /// show, and for a render that refracts (`refraction`) where η changes.
+    fn occupancy(&self, tf: &TransferFunctions, refraction: bool) -> (super::bricks::Bricks, Vec<Occupancy>) {
         let mut bricks = super::bricks::visible_bricks(&self.brick_ranges, tf);
         let mut cells = vec![self.cell_ranges.visible(tf)];
-        if let Some((bends, refracting_cells)) = &self.refracting {
+        if let Some((bends, refracting_cells)) = self.refracting.as_ref().filter(|_| refraction) {
             for (flag, bent) in bricks.flags.iter_mut().zip(bends) {
                 *flag |= bent;
             }
@@ -85,11 +85,12 @@ impl Untouched {
         &self,
         ctx: &Arc<Context>,
         tf: &TransferFunctions,
+        refraction: bool,
     ) -> Result<Option<(Buffer, Vec<Occupancy>)>, GpuError> {
         let Some(half) = &self.half else {
             return Ok(None);
         };
-        let (bricks, cells) = half.occupancy(tf);
+        let (bricks, cells) = half.occupancy(tf, refraction);
         let buffer = Buffer::new_storage_from(ctx, "bricks at half resolution", bytemuck::cast_slice(&bricks.flags))?;
         Ok(Some((buffer, cells)))
     }
@@ -342,6 +343,11 @@ impl PendingUpload {
         }
     }
 
+    /// Nothing to copy in.
+    fn none() -> Self {
+        PendingUpload { parts: Vec::new() }
+    }
+
     /// Bytes staged for the copy.
     pub fn bytes(&self) -> u64 {
         self.parts.iter().map(|(staging, _)| staging.size).sum()
@@ -503,9 +509,10 @@ impl SceneTextures {
             refracting,
             half: half_ranges,
         };
-        let (occupancy, cells) = untouched.occupancy(tf);
+        let refracts = untouched.refracting.is_some();
+        let (occupancy, cells) = untouched.occupancy(tf, refracts);
         let bricks = Buffer::new_storage_from(ctx, "bricks", bytemuck::cast_slice(&occupancy.flags))?;
-        let half_bricks = untouched.half_occupancy(ctx, tf)?;
+        let half_bricks = untouched.half_occupancy(ctx, tf, refracts)?;
         let textures = SceneTextures {
             volume,
             gradient,
@@ -564,22 +571,38 @@ impl SceneTextures {
         Ok(PendingUpload::new(staging.into_buffer(ctx)?, uploads))
     }
 
+    /// Makes the bricks and the occupied cells anew for `tf` and for a render that refracts or
+    /// not (`refraction`: where η changes counts): they live in host-visible memory, nothing
+    /// is copied in. A render without refraction reads no gradient volume, so one made
+    /// before (the viewer's switch) stays for when refraction is switched on again.
+    fn replace_occupancy(
+        &mut self,
+        ctx: &Arc<Context>,
+        tf: &TransferFunctions,
+        refraction: bool,
+    ) -> Result<(), GpuError> {
+        let (bricks, cells) = self.untouched.occupancy(tf, refraction);
+        self.bricks = Buffer::new_storage_from(ctx, "bricks", bytemuck::cast_slice(&bricks.flags))?;
+        self.brick_dims = bricks.dims;
+        self.occupancy = cells;
+        self.half_bricks = self.untouched.half_occupancy(ctx, tf, refraction)?;
+        Ok(())
+    }
+
     /// Brings the textures up to date with other transfer functions whose η is the same (the
     /// gradient volume stays), at `sample_distance`, and stages what changed: the
-    /// pre-integrated tables, the bricks and the occupied cells. The volume, the orientation
-    /// volume, the gradient volume and the environment stay: on the CT head they are about
-    /// 130 MB to make and copy, which every edit in the viewer's editor paid before.
+    /// pre-integrated tables, the bricks and the occupied cells (`refraction`: of a render
+    /// that refracts). The volume, the orientation volume, the gradient volume and the
+    /// environment stay: on the CT head they are about 130 MB to make and copy, which every
+    /// edit in the viewer's editor paid before.
     fn replace_transfer(
         &mut self,
         ctx: &Arc<Context>,
         tf: &TransferFunctions,
         sample_distance: f32,
+        refraction: bool,
     ) -> Result<PendingUpload, GpuError> {
-        let (bricks, cells) = self.untouched.occupancy(tf);
-        self.bricks = Buffer::new_storage_from(ctx, "bricks", bytemuck::cast_slice(&bricks.flags))?;
-        self.brick_dims = bricks.dims;
-        self.occupancy = cells;
-        self.half_bricks = self.untouched.half_occupancy(ctx, tf)?;
+        self.replace_occupancy(ctx, tf, refraction)?;
         // Tables of the old transfer functions are of no use any more.
         self.kept_tables.clear();
         self.replace_tables(ctx, tf, sample_distance)
@@ -646,7 +669,7 @@ impl SceneTextures {
             })
             .collect::<Result<_, GpuError>>()?;
         let gradient = PendingUpload::new(staging.into_buffer(ctx)?, uploads);
-        Ok(gradient.and(self.replace_transfer(ctx, tf, sample_distance)?))
+        Ok(gradient.and(self.replace_transfer(ctx, tf, sample_distance, true)?))
     }
 
     /// Replaces the environment map with `env`'s and stages it; the rest stays.
@@ -732,9 +755,12 @@ impl SceneTextures {
 /// alive here, so a freed volume's address cannot be mistaken for a new one.
 pub struct TexturesKey {
     volume: Arc<Volume>,
-    eta_volume: Option<Arc<Volume>>,
-    /// The gradient volume exists (refraction) and how it was reconstructed.
-    gradient: Option<Gradient>,
+    /// What the gradient volume is made from, where there is one. Kept textures may hold one
+    /// that a render without refraction does not read.
+    gradient: Option<GradientSource>,
+    /// The render refracts: it reads the gradient volume, and the bricks and occupied cells
+    /// count where η changes.
+    refraction: bool,
     /// The orientation volume exists.
     orientation: bool,
     window: [f32; 2],
@@ -750,10 +776,15 @@ pub struct TexturesKey {
 impl TexturesKey {
     /// What `prepared` needs; `coarse`: with the volumes' half-resolution level.
     pub fn new(prepared: &super::PreparedScene, features: &super::Features, coarse: bool, axes: [usize; 3]) -> Self {
+        let gradient = features.refraction.then(|| GradientSource {
+            scheme: features.gradient,
+            eta: prepared.tf.eta.clone(),
+            eta_volume: prepared.eta_volume.clone().filter(|_| features.eta_volume),
+        });
         TexturesKey {
             volume: prepared.volume.clone(),
-            eta_volume: prepared.eta_volume.clone().filter(|_| features.eta_volume),
-            gradient: features.refraction.then_some(features.gradient),
+            gradient,
+            refraction: features.refraction,
             orientation: !features.sampled_layers,
             window: prepared.window(),
             tf: prepared.tf.clone(),
@@ -785,40 +816,60 @@ impl TexturesKey {
 
     /// The same but for the sample distance, on which only the pre-integrated tables depend.
     fn same_but_step(&self, other: &TexturesKey) -> bool {
-        self.same_but_transfer(other) && self.tf == other.tf
+        self.same_but_transfer(other) && self.tf == other.tf && self.refraction == other.refraction
     }
 
-    /// The same but for the transfer functions other than η where a gradient volume was made
-    /// from η, and the sample distance: what [`SceneTextures::replace_transfer`] brings up to
-    /// date. Textures with the half-resolution level serve a key without it.
+    /// The same but for whether the render refracts, where the textures hold the gradient
+    /// volume it reads: only the bricks and occupied cells depend on it.
+    fn same_but_refraction(&self, other: &TexturesKey) -> bool {
+        self.same_but_transfer(other) && self.tf == other.tf && self.sample_distance == other.sample_distance
+    }
+
+    /// The same but for the transfer functions other than the η a gradient volume read is
+    /// made from, the sample distance and whether the render refracts: what
+    /// [`SceneTextures::replace_transfer`] brings up to date. Textures with the
+    /// half-resolution level serve a key without it.
     fn same_but_transfer(&self, other: &TexturesKey) -> bool {
         self.axes == other.axes && self.same_but_transfer_and_layout(other)
     }
 
     /// [`TexturesKey::same_but_transfer`] whatever the layout of the volume's axes.
     fn same_but_transfer_and_layout(&self, other: &TexturesKey) -> bool {
-        self.same_but_eta_and_layout(other) && (self.gradient.is_none() || self.tf.eta == other.tf.eta)
+        self.same_but_eta_and_layout(other) && (!other.refraction || self.gradient == other.gradient)
     }
 
-    /// The same but for the transfer functions, η included, and the sample distance: what
-    /// [`SceneTextures::replace_eta`] brings up to date.
+    /// The same but for the transfer functions, η included, the sample distance and the
+    /// gradient volume: what [`SceneTextures::replace_eta`] brings up to date.
     fn same_but_eta(&self, other: &TexturesKey) -> bool {
         self.axes == other.axes && self.same_but_eta_and_layout(other)
     }
 
     /// [`TexturesKey::same_but_eta`] whatever the layout of the volume's axes.
     fn same_but_eta_and_layout(&self, other: &TexturesKey) -> bool {
-        let eta_same = match (&self.eta_volume, &other.eta_volume) {
+        Arc::ptr_eq(&self.volume, &other.volume)
+            && self.orientation == other.orientation
+            && self.window == other.window
+            && (self.coarse || !other.coarse)
+    }
+}
+
+/// What a gradient volume is made from: how it is reconstructed, η, and the η volume where
+/// the objects have one (compared by identity, as the volume is).
+#[derive(Clone)]
+struct GradientSource {
+    scheme: Gradient,
+    eta: Curve,
+    eta_volume: Option<Arc<Volume>>,
+}
+
+impl PartialEq for GradientSource {
+    fn eq(&self, other: &Self) -> bool {
+        let same_volume = match (&self.eta_volume, &other.eta_volume) {
             (Some(a), Some(b)) => Arc::ptr_eq(a, b),
             (None, None) => true,
             _ => false,
         };
-        Arc::ptr_eq(&self.volume, &other.volume)
-            && eta_same
-            && self.gradient == other.gradient
-            && self.orientation == other.orientation
-            && self.window == other.window
-            && (self.coarse || !other.coarse)
+        self.scheme == other.scheme && self.eta == other.eta && same_volume
     }
 }
 
@@ -961,18 +1012,50 @@ impl CachedTextures {
     ) -> Result<PendingUpload, GpuError> {
         self.uploaded.set(false);
         let pending = update(&mut self.textures)?;
-        // The volume images stay, with whatever levels they have, and so does the environment
-        // map ([`CachedTextures::replace_environment`]).
+        // The volume images stay, with whatever levels they have, and so do the environment
+        // map ([`CachedTextures::replace_environment`]) and a gradient volume that a render
+        // without refraction does not read.
+        let gradient = if key.refraction {
+            key.gradient.clone()
+        } else {
+            self.key.gradient.take()
+        };
         self.key = TexturesKey {
             coarse: self.key.coarse,
             environment: self.key.environment.clone(),
+            gradient,
             ..key
         };
         Ok(pending)
     }
 
+    /// Whether the textures differ from `key`'s only in whether the render refracts, and hold
+    /// the gradient volume it reads if it does: [`CachedTextures::replace_occupancy`] brings
+    /// them up to date.
+    pub fn matches_but_refraction(&self, key: &TexturesKey) -> bool {
+        self.uploaded.get() && self.key.same_but_refraction(key)
+    }
+
+    /// New bricks and occupied cells for `key`'s render, which refracts or not (the images
+    /// are kept, nothing is copied in); until the returned upload has executed nothing
+    /// matches.
+    pub fn replace_occupancy(
+        &mut self,
+        ctx: &Arc<Context>,
+        tf: &TransferFunctions,
+        key: TexturesKey,
+    ) -> Result<PendingUpload, GpuError> {
+        self.grown.clear();
+        let refraction = key.refraction;
+        self.replace(key, |t| {
+            t.replace_occupancy(ctx, tf, refraction)?;
+            Ok(PendingUpload::none())
+        })
+    }
+
     /// Whether the textures differ from `key`'s only in what a transfer-function edit that
-    /// keeps η changes: [`CachedTextures::replace_transfer`] brings them up to date.
+    /// keeps η changes (or switching refraction where they hold the gradient volume):
+    /// [`CachedTextures::replace_transfer`] brings them up to date.
     pub fn matches_but_transfer(&self, key: &TexturesKey) -> bool {
         self.uploaded.get() && self.key.same_but_transfer(key)
     }
@@ -987,8 +1070,8 @@ impl CachedTextures {
         key: TexturesKey,
     ) -> Result<PendingUpload, GpuError> {
         self.grown.clear();
-        let sample_distance = key.sample_distance;
-        self.replace(key, |t| t.replace_transfer(ctx, tf, sample_distance))
+        let (sample_distance, refraction) = (key.sample_distance, key.refraction);
+        self.replace(key, |t| t.replace_transfer(ctx, tf, sample_distance, refraction))
     }
 
     /// Whether the environment map is the one `key` asks for. The other `matches` leave the
