@@ -91,6 +91,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut renderer = Renderer::new(Context::new(&ContextDesc::default())?)?;
     let mut req = RenderRequest::new(127, 152);
     req.keep_coarse_volume = true;
+    req.keep_staging = true;
     let mut frame = |p: &PreparedScene| -> Result<String, Box<dyn std::error::Error>> {
         let start = Instant::now();
         let out = renderer.render(p, &req)?;

@@ -33,7 +33,11 @@ fn fresh(p: &PreparedScene) -> Vec<[f32; 4]> {
 #[test]
 fn reused_textures_match_a_fresh_upload_and_edits_invalidate_them() {
     let mut gpu = Gpu::new();
-    let req = RenderRequest::new(48, 40);
+    // As the viewer asks: the staging buffer is written again by the next upload of volumes.
+    let req = RenderRequest {
+        keep_staging: true,
+        ..RenderRequest::new(48, 40)
+    };
     let mut p = prepared();
     let first = gpu.render(&p, &req).image.pixels;
     // Camera and light do not touch the textures: the second render reuses them.
@@ -42,6 +46,7 @@ fn reused_textures_match_a_fresh_upload_and_edits_invalidate_them() {
     assert_eq!(gpu.render(&p, &req).image.pixels, fresh(&p));
 
     // Each texture input, changed, must give the fresh renderer's image, not the cached one.
+    // Another data window makes the volumes anew into the images and staging buffer kept.
     let mut opaque = p.tf.clone();
     opaque.opacity.points = vec![[0.0, 0.0], [0.3, 0.8]];
     let edits: Vec<Edit> = vec![
@@ -137,7 +142,11 @@ fn a_transfer_function_edit_keeps_the_volume_images_unless_eta_changes() {
 fn transfer_edits(mut p: PreparedScene, yaw_deg: f32, axes: Option<[u8; 3]>, level: u32) {
     let table_bytes = 2 * (TABLE_SIZE * TABLE_SIZE * 8) as u64;
     let mut gpu = Gpu::new();
-    let req = RenderRequest::new(48, 40);
+    // As the viewer asks: the staging buffer is written again by the next upload of volumes.
+    let req = RenderRequest {
+        keep_staging: true,
+        ..RenderRequest::new(48, 40)
+    };
     p.scene.camera.yaw_deg = yaw_deg;
     p.scene.quality.volume_level = level;
     // With η from the volume: the glass's index at first the air's and the ground's raised, so

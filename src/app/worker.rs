@@ -227,6 +227,8 @@ fn handle(
                 // The coarse levels read the volumes' half-resolution level: made with the
                 // first frame, so no level uploads the volumes again.
                 req.keep_coarse_volume = true;
+                // A drag of the data window or of η writes the volumes' staging buffer again.
+                req.keep_staging = true;
                 // The levels that sample the half-resolution volume keep the textures' layout
                 // (a turn would make them anew whenever it brings another layout's axis nearest
                 // the view); those at full resolution lay them out for their view, made anew

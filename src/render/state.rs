@@ -1055,7 +1055,22 @@ pub(super) fn run(
             pending = Some(c.replace_eta(ctx, &laid_out, (eta_source, features.gradient), &prepared.tf, key)?);
         }
         _ => {
-            *cache = None; // free the old textures before allocating new ones
+            // The old textures go before the new are allocated, but for a staging buffer kept
+            // and, where they are of the same volume laid out the same way (another data
+            // window), the volume images, which the new take where they are what a new image
+            // would be.
+            let (staging, reuse) = match cache.take() {
+                Some(mut c) => {
+                    let staging = c.take_staging();
+                    let reuse = if c.same_volume_and_layout(&key) {
+                        c.into_volume_images()
+                    } else {
+                        Vec::new()
+                    };
+                    (staging, reuse)
+                }
+                None => (None, Vec::new()),
+            };
 
             let axes = view.memory_axes;
             let laid_out = in_layout(vol, axes);
@@ -1071,10 +1086,16 @@ pub(super) fn run(
                 scene.quality.sample_distance,
                 prepared.env.as_ref(),
                 key.coarse(),
+                staging,
+                reuse,
             )?;
-            *cache = Some(CachedTextures::new(key, textures));
+            *cache = Some(CachedTextures::new(key, textures, &upload));
             pending = Some(upload);
         }
+    }
+    if let Some(c) = cache.as_mut().filter(|_| !req.keep_staging) {
+        // The staging buffer goes once its copy has executed.
+        drop(c.take_staging());
     }
     if let Some(c) = cache.as_mut().filter(|c| !c.matches_environment(&environment)) {
         // Another environment map (a switch of image, or to the studio): the volumes stay.

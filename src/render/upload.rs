@@ -100,6 +100,8 @@ impl Untouched {
 pub struct PendingUpload {
     /// Each staging buffer with what it holds.
     parts: Vec<(Arc<Buffer>, StagedImages)>,
+    /// Bytes staged (a staging buffer written again may be larger).
+    bytes: u64,
 }
 
 /// Texels to stage, owned: a volume's are written once, straight into the mapped staging
@@ -123,12 +125,29 @@ struct Staging {
 }
 
 impl Staging {
-    fn into_buffer(self, ctx: &Arc<Context>) -> Result<Buffer, GpuError> {
-        let mut buffer = Buffer::new_upload(ctx, "scene staging", self.len, ash::vk::BufferUsageFlags::TRANSFER_SRC)?;
+    /// A new buffer with the staged blobs, and their bytes.
+    fn into_buffer(self, ctx: &Arc<Context>) -> Result<(Arc<Buffer>, u64), GpuError> {
+        self.into_kept(ctx, None)
+    }
+
+    /// The staged blobs written into `kept` where it is large enough and nothing else holds it
+    /// (its copies have executed), else into a new buffer. A buffer written again needs no new
+    /// pages: on the CT head a new one took 115 ms of page faults for its 139 MB.
+    fn into_kept(self, ctx: &Arc<Context>, kept: Option<Arc<Buffer>>) -> Result<(Arc<Buffer>, u64), GpuError> {
+        let mut buffer = match kept {
+            Some(b) if b.size >= self.len && Arc::strong_count(&b) == 1 && Arc::weak_count(&b) == 0 => b,
+            _ => Arc::new(Buffer::new_upload(
+                ctx,
+                "scene staging",
+                self.len,
+                ash::vk::BufferUsageFlags::TRANSFER_SRC,
+            )?),
+        };
+        let target = Arc::get_mut(&mut buffer).ok_or_else(missing)?;
         for (offset, blob) in &self.blobs {
-            buffer.write_at(*offset, blob.bytes())?;
+            target.write_at(*offset, blob.bytes())?;
         }
-        Ok(buffer)
+        Ok((buffer, self.len))
     }
 
     /// Stages `blob` as it is; its offset.
@@ -237,9 +256,36 @@ struct Staged {
     /// (index into `images`, (staging offset, extent) per mip level)
     uploads: Vec<(usize, Levels)>,
     images: Vec<Image>,
+    /// Images of textures made before, taken where one is what an image to create would be.
+    pool: Vec<Image>,
 }
 
 impl Staged {
+    /// An image of `desc`: one of the pool's where one has the same label, format, extent,
+    /// levels and usage (written again, its memory needs no new pages: on the CT head new
+    /// volume images took about as long in page faults as their staging buffer), else a new
+    /// one, after the pool's image of that label (the same role) is freed.
+    fn image(&mut self, ctx: &Arc<Context>, desc: ImageDesc) -> Result<Image, GpuError> {
+        let same = |i: &Image| {
+            let d = &i.desc;
+            (&d.label, d.format, d.extent, d.dim3, d.mip_levels, d.layers, d.usage)
+                == (
+                    &desc.label,
+                    desc.format,
+                    desc.extent,
+                    desc.dim3,
+                    desc.mip_levels,
+                    desc.layers,
+                    desc.usage,
+                )
+        };
+        if let Some(i) = self.pool.iter().position(same) {
+            return Ok(self.pool.swap_remove(i));
+        }
+        self.pool.retain(|i| i.desc.label != desc.label);
+        Image::new(ctx, desc)
+    }
+
     /// Creates a sampled 3D image of `extent` texels in `format` and stages `texels` for it;
     /// with `half` (`half_of`), a second image of its half-resolution level after it.
     /// Whether it made the second. An image of its own rather than a mip level read through a
@@ -256,7 +302,7 @@ impl Staged {
         half: Option<Vec<T>>,
     ) -> Result<bool, GpuError> {
         let dims = extent.map(|n| n as usize);
-        let image = Image::new(ctx, ImageDesc::sampled(label, format, extent, true, 1))?;
+        let image = self.image(ctx, ImageDesc::sampled(label, format, extent, true, 1))?;
         self.uploads.push((
             self.images.len(),
             vec![(self.staging.push_owned(Box::new(texels)), extent)],
@@ -266,7 +312,7 @@ impl Staged {
             return Ok(false);
         };
         let half_extent = super::coarse::half_dims(dims).map(|n| n as u32);
-        let image = Image::new(
+        let image = self.image(
             ctx,
             ImageDesc::sampled(&format!("{label} at half resolution"), format, half_extent, true, 1),
         )?;
@@ -337,25 +383,37 @@ impl Refracting {
 }
 
 impl PendingUpload {
-    fn new(staging: Buffer, uploads: StagedImages) -> Self {
+    /// `staging`: the buffer and the bytes staged in it.
+    fn new(staging: (Arc<Buffer>, u64), uploads: StagedImages) -> Self {
+        let (buffer, bytes) = staging;
         PendingUpload {
-            parts: vec![(Arc::new(staging), uploads)],
+            parts: vec![(buffer, uploads)],
+            bytes,
         }
+    }
+
+    /// The staging buffer of its first part.
+    fn staging(&self) -> Option<Arc<Buffer>> {
+        self.parts.first().map(|(b, _)| b.clone())
     }
 
     /// Nothing to copy in.
     fn none() -> Self {
-        PendingUpload { parts: Vec::new() }
+        PendingUpload {
+            parts: Vec::new(),
+            bytes: 0,
+        }
     }
 
     /// Bytes staged for the copy.
     pub fn bytes(&self) -> u64 {
-        self.parts.iter().map(|(staging, _)| staging.size).sum()
+        self.bytes
     }
 
     /// This upload and `other` (of other images) in one.
     pub fn and(mut self, other: PendingUpload) -> PendingUpload {
         self.parts.extend(other.parts);
+        self.bytes += other.bytes;
         self
     }
 }
@@ -365,6 +423,10 @@ impl SceneTextures {
     /// copies them in. `orientation`: make the orientation volume. `refraction`: the η source
     /// (the η volume with its value range, or the volume itself) for the gradient volume.
     /// `coarse`: give the volumes their half-resolution level (`quality.volume_level`).
+    /// `staging`: a staging buffer kept from an earlier upload, used again where it is large
+    /// enough ([`PendingUpload::staging`] gives this one's); `reuse`: volume images of
+    /// textures made before (of the same volume), each taken where it is what a new one would
+    /// be, the others freed.
     #[allow(clippy::too_many_arguments)]
     pub fn upload(
         ctx: &Arc<Context>,
@@ -376,8 +438,13 @@ impl SceneTextures {
         sample_distance: f32,
         env: Option<&EnvMap>,
         coarse: bool,
+        staging: Option<Arc<Buffer>>,
+        reuse: Vec<Image>,
     ) -> Result<(Self, PendingUpload), GpuError> {
-        let mut staged = Staged::default();
+        let mut staged = Staged {
+            pool: reuse,
+            ..Staged::default()
+        };
         let vol_dims = volume.dims;
         let vol_extent = vol_dims.map(|n| n as u32);
         let samples = volume.normalized_u16(window);
@@ -454,12 +521,16 @@ impl SceneTextures {
         staged.uploads.push((staged.images.len(), levels));
         staged.images.push(img);
 
+        let kept = staging;
         let Staged {
             staging,
             uploads,
             images,
+            pool,
         } = staged;
-        let buffer = staging.into_buffer(ctx)?;
+        // The images made before that were not taken are freed.
+        drop(pool);
+        let buffer = staging.into_kept(ctx, kept)?;
 
         use ash::vk::SamplerAddressMode as A;
         let linear_clamp = Sampler::new(
@@ -623,6 +694,7 @@ impl SceneTextures {
         tf: &TransferFunctions,
         sample_distance: f32,
         coarse: bool,
+        kept: Option<Arc<Buffer>>,
     ) -> Result<PendingUpload, GpuError> {
         let samples = match refraction.0 {
             Some(_) => Vec::new(),
@@ -636,7 +708,17 @@ impl SceneTextures {
             &tf.eta,
             coarse,
         );
-        let mut staged = Staged::default();
+        // The old gradient volume's images serve again where they are what new ones would be;
+        // a placeholder texel holds the place until the new image is in it.
+        let placeholder = Image::new(
+            ctx,
+            ImageDesc::sampled("gradient volume", Format::R16G16B16A16_SFLOAT, [1, 1, 1], true, 1),
+        )?;
+        let old = std::mem::replace(&mut self.gradient, placeholder);
+        let mut staged = Staged {
+            pool: [Some(old), self.half[1].take()].into_iter().flatten().collect(),
+            ..Staged::default()
+        };
         let made_half = staged.volume(
             ctx,
             "gradient volume",
@@ -649,6 +731,7 @@ impl SceneTextures {
             staging,
             uploads,
             images,
+            ..
         } = staged;
         let mut images = images.into_iter();
         self.gradient = images.next().ok_or_else(missing)?;
@@ -668,7 +751,7 @@ impl SceneTextures {
                 Ok((at, levels))
             })
             .collect::<Result<_, GpuError>>()?;
-        let gradient = PendingUpload::new(staging.into_buffer(ctx)?, uploads);
+        let gradient = PendingUpload::new(staging.into_kept(ctx, kept)?, uploads);
         Ok(gradient.and(self.replace_transfer(ctx, tf, sample_distance, true)?))
     }
 
@@ -962,11 +1045,16 @@ pub struct CachedTextures {
     uploaded: Cell<bool>,
     /// The occupied cells last grown ([`CachedTextures::grown`]).
     grown: GrowthCache,
+    /// The staging buffer of the volumes' last upload where the render asked to keep it
+    /// (`RenderRequest::keep_staging`), written again by the next where it is large enough.
+    staging: Option<Arc<Buffer>>,
 }
 
 impl CachedTextures {
-    pub fn new(key: TexturesKey, textures: SceneTextures) -> Self {
+    /// The textures made for `key`, keeping `upload`'s staging buffer for the next.
+    pub fn new(key: TexturesKey, textures: SceneTextures, upload: &PendingUpload) -> Self {
         CachedTextures {
+            staging: upload.staging(),
             key,
             textures,
             uploaded: Cell::new(false),
@@ -1113,9 +1201,33 @@ impl CachedTextures {
     ) -> Result<PendingUpload, GpuError> {
         self.grown.clear();
         let (window, sample_distance, coarse) = (key.window, key.sample_distance, self.key.coarse);
-        self.replace(key, |t| {
-            t.replace_eta(ctx, volume, window, refraction, tf, sample_distance, coarse)
-        })
+        let kept = self.staging.take();
+        let pending = self.replace(key, |t| {
+            t.replace_eta(ctx, volume, window, refraction, tf, sample_distance, coarse, kept)
+        })?;
+        self.staging = pending.staging();
+        Ok(pending)
+    }
+
+    /// The staging buffer kept for the next upload of volumes, given up.
+    pub fn take_staging(&mut self) -> Option<Arc<Buffer>> {
+        self.staging.take()
+    }
+
+    /// Whether the textures were made from `key`'s volume, its axes laid out the same way.
+    pub fn same_volume_and_layout(&self, key: &TexturesKey) -> bool {
+        Arc::ptr_eq(&self.key.volume, &key.volume) && self.key.axes == key.axes
+    }
+
+    /// The volume images (the volume, gradient and orientation volumes and their half
+    /// levels), for new textures to take where they are what a new image would be.
+    pub fn into_volume_images(self) -> Vec<Image> {
+        let t = self.textures;
+        [Some(t.volume), Some(t.gradient), Some(t.orientation)]
+            .into_iter()
+            .chain(t.half)
+            .flatten()
+            .collect()
     }
 
     /// The textures' occupied cells grown by `margin` (`GrowthCache::grown`).
