@@ -7,9 +7,12 @@
 //! The level is an image of its own beside each volume image (a mip level's extent: ⌊n/2⌋ per
 //! axis, at least 1), bound in its place, so the passes read it unchanged.
 
+use half::slice::HalfFloatSliceExt;
+
 pub use crate::volume::half_level_dims as half_dims;
 use crate::volume::resample::resample_texels;
 pub use crate::volume::resample::Channels;
+use crate::volume::round_half_away;
 
 impl Channels for u16 {
     const N: usize = 1;
@@ -17,7 +20,7 @@ impl Channels for u16 {
         [*self as f32, 0.0, 0.0, 0.0]
     }
     fn put(v: [f32; 4]) -> Self {
-        v[0].round().clamp(0.0, u16::MAX as f32) as u16
+        round_half_away(v[0]).clamp(0.0, u16::MAX as f32) as u16
     }
 }
 
@@ -28,17 +31,23 @@ impl Channels for [i16; 4] {
     }
     fn put(v: [f32; 4]) -> Self {
         // SNORM: −32768 and −32767 both read as −1.
-        v.map(|c| c.round().clamp(-32767.0, 32767.0) as i16)
+        v.map(|c| round_half_away(c).clamp(-32767.0, 32767.0) as i16)
     }
 }
 
+/// The four channels converted at once (one check of the CPU's conversion instructions and
+/// one instruction, instead of a call per channel: the same bits).
 impl Channels for [half::f16; 4] {
     const N: usize = 4;
     fn get(&self) -> [f32; 4] {
-        self.map(|c| c.to_f32())
+        let mut v = [0.0; 4];
+        self.convert_to_f32_slice(&mut v);
+        v
     }
     fn put(v: [f32; 4]) -> Self {
-        v.map(half::f16::from_f32)
+        let mut h = [half::f16::ZERO; 4];
+        h.convert_from_f32_slice(&v);
+        h
     }
 }
 
@@ -61,6 +70,23 @@ fn half_axis_weights(n: usize) -> Vec<Vec<(usize, f32)>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn half_float_texels_convert_as_each_channel_alone() {
+        // Values across the half floats' range: subnormals, rounding ties, beyond the largest
+        // (infinity), negative zero and NaN.
+        let mut values: Vec<f32> = vec![0.0, -0.0, 6e-8, 3e-8, 65504.0, 65520.0, 1e9, f32::NAN, -1.0 / 3.0];
+        values.extend((0..20_000).map(|i| ((i as f32) * 0.618_034).sin() * 10f32.powi(i % 12 - 6)));
+        values.extend((0..2048).map(|m| 1.0 + (2 * m + 1) as f32 * 2f32.powi(-12)));
+        for v in values.chunks_exact(4) {
+            let v = [v[0], v[1], v[2], v[3]];
+            let alone = v.map(half::f16::from_f32);
+            let texel = <[half::f16; 4] as Channels>::put(v);
+            assert_eq!(texel.map(|h| h.to_bits()), alone.map(|h| h.to_bits()), "{v:?}");
+            let back = texel.get();
+            assert_eq!(back.map(f32::to_bits), alone.map(|h| h.to_f32().to_bits()), "{v:?}");
+        }
+    }
 
     #[test]
     fn each_coarse_texel_weighs_what_it_covers_of_every_voxel() {

@@ -2,6 +2,7 @@
 //! functions or the η source change, so that the shaders get both from one trilinear fetch
 //! instead of six samples and twelve table lookups.
 
+use half::slice::HalfFloatSliceExt;
 use rayon::prelude::*;
 
 use crate::scene::Gradient;
@@ -46,14 +47,7 @@ pub fn gradient_volume(samples: &[u16], dims: [usize; 3], eta: &Curve, scheme: G
             etas[(z as usize * ny + y as usize) * nx + x as usize]
         }
     };
-    let texel = |d: [f32; 3], c: f32| {
-        [
-            half::f16::from_f32(d[0]),
-            half::f16::from_f32(d[1]),
-            half::f16::from_f32(d[2]),
-            half::f16::from_f32(c - ambient),
-        ]
-    };
+    let texel = |d: [f32; 3], c: f32| [d[0], d[1], d[2], c - ambient];
     // How far the scheme reaches: voxels at least this far from every face read no outside
     // value, and take their neighbours at fixed offsets without the bounds tests (the same
     // values and operations: the same texels; the CT head's gradient volume in about 130 ms
@@ -67,6 +61,10 @@ pub fn gradient_volume(samples: &[u16], dims: [usize; 3], eta: &Curve, scheme: G
     out.par_chunks_mut(nx * ny).enumerate().for_each(|(z, slice)| {
         let inner_z = z >= reach && z + reach < nz;
         let z = z as isize;
+        // A row's texels in f32, converted to half floats at once (one check of the CPU's
+        // conversion instructions and 8 values an instruction, instead of one call per value:
+        // the same bits; the CT head's gradient volume in 77 ms instead of 105–131).
+        let mut texels = vec![[0.0f32; 4]; nx];
         for y in 0..ny as isize {
             let inner_row = inner_z && y as usize >= reach && y as usize + reach < ny;
             let row = y as usize * nx;
@@ -93,7 +91,7 @@ pub fn gradient_volume(samples: &[u16], dims: [usize; 3], eta: &Curve, scheme: G
                     }
                     Gradient::Forward => [2.0 * (e(sx) - c), 2.0 * (e(sy) - c), 2.0 * (e(sz) - c)],
                 };
-                slice[row + x] = texel(d, c);
+                texels[x] = texel(d, c);
             }
             for x in (0..inner.start as isize).chain(inner.end as isize..nx as isize) {
                 let c = at(x, y, z);
@@ -117,8 +115,10 @@ pub fn gradient_volume(samples: &[u16], dims: [usize; 3], eta: &Curve, scheme: G
                         2.0 * (at(x, y, z + 1) - c),
                     ],
                 };
-                slice[row + x as usize] = texel(d, c);
+                texels[x as usize] = texel(d, c);
             }
+            let halves: &mut [half::f16] = bytemuck::cast_slice_mut(&mut slice[row..row + nx]);
+            halves.convert_from_f32_slice(bytemuck::cast_slice(&texels));
         }
     });
     out

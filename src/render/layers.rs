@@ -30,7 +30,7 @@ pub fn orientation_volume(samples: &[u16], dims: [usize; 3], spacing: [f32; 3], 
     let [(kx, fx, rx), (ky, fy, ry), (kz, fz, rz)] = [axis(0), axis(1), axis(2)];
     let scale = ORIENTATION_SCALE / 65535.0;
     let (sx, sy, sz) = (scale / rx, scale / ry, scale / rz);
-    let texel = |d: f32, s: f32| (d * s).round().clamp(-32767.0, 32767.0) as i16;
+    let texel = |d: f32, s: f32| crate::volume::round_half_away(d * s).clamp(-32767.0, 32767.0) as i16;
     // Rows of x, whole: a row beyond the volume reads as the border's zeros.
     let zeros = vec![0u16; nx];
     let row = |y: isize, z: isize| -> &[u16] {
