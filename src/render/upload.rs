@@ -134,9 +134,11 @@ impl Staging {
     /// (its copies have executed), else into a new buffer. A buffer written again needs no new
     /// pages: on the CT head a new one took 115 ms of page faults for its 139 MB.
     fn into_kept(self, ctx: &Arc<Context>, kept: Option<Arc<Buffer>>) -> Result<(Arc<Buffer>, u64), GpuError> {
-        let mut buffer = match kept {
-            Some(b) if b.size >= self.len && Arc::strong_count(&b) == 1 && Arc::weak_count(&b) == 0 => b,
-            _ => Arc::new(Buffer::new_upload(
+        // A kept buffer that cannot serve goes before a new one is allocated.
+        let usable = kept.filter(|b| b.size >= self.len && Arc::strong_count(b) == 1 && Arc::weak_count(b) == 0);
+        let mut buffer = match usable {
+            Some(b) => b,
+            None => Arc::new(Buffer::new_upload(
                 ctx,
                 "scene staging",
                 self.len,
