@@ -278,7 +278,7 @@ impl Drop for Buffer {
 
 /// Describes an image: 2D when `depth == 1` and `dim3` is false; with `layers` a 2D array of
 /// that many layers (its view a 2D array, as `texture_storage_2d_array` needs).
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct ImageDesc {
     pub label: String,
     pub format: vk::Format,

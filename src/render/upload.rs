@@ -135,7 +135,7 @@ impl Staging {
     /// pages: on the CT head a new one took 115 ms of page faults for its 139 MB.
     fn into_kept(self, ctx: &Arc<Context>, kept: Option<Arc<Buffer>>) -> Result<(Arc<Buffer>, u64), GpuError> {
         // A kept buffer that cannot serve goes before a new one is allocated.
-        let usable = kept.filter(|b| b.size >= self.len && Arc::strong_count(b) == 1 && Arc::weak_count(b) == 0);
+        let usable = kept.and_then(|mut b| (b.size >= self.len && Arc::get_mut(&mut b).is_some()).then_some(b));
         let mut buffer = match usable {
             Some(b) => b,
             None => Arc::new(Buffer::new_upload(
@@ -263,25 +263,12 @@ struct Staged {
 }
 
 impl Staged {
-    /// An image of `desc`: one of the pool's where one has the same label, format, extent,
-    /// levels and usage (written again, its memory needs no new pages: on the CT head new
-    /// volume images took about as long in page faults as their staging buffer), else a new
-    /// one, after the pool's image of that label (the same role) is freed.
+    /// An image of `desc`: one of the pool's where one has the same description (label,
+    /// format, extent, levels and usage; written again, its memory needs no new pages: on the
+    /// CT head new volume images took about as long in page faults as their staging buffer),
+    /// else a new one, after the pool's image of that label (the same role) is freed.
     fn image(&mut self, ctx: &Arc<Context>, desc: ImageDesc) -> Result<Image, GpuError> {
-        let same = |i: &Image| {
-            let d = &i.desc;
-            (&d.label, d.format, d.extent, d.dim3, d.mip_levels, d.layers, d.usage)
-                == (
-                    &desc.label,
-                    desc.format,
-                    desc.extent,
-                    desc.dim3,
-                    desc.mip_levels,
-                    desc.layers,
-                    desc.usage,
-                )
-        };
-        if let Some(i) = self.pool.iter().position(same) {
+        if let Some(i) = self.pool.iter().position(|i| i.desc == desc) {
             return Ok(self.pool.swap_remove(i));
         }
         self.pool.retain(|i| i.desc.label != desc.label);
@@ -425,7 +412,7 @@ impl SceneTextures {
     /// copies them in. `orientation`: make the orientation volume. `refraction`: the η source
     /// (the η volume with its value range, or the volume itself) for the gradient volume.
     /// `coarse`: give the volumes their half-resolution level (`quality.volume_level`).
-    /// `staging`: a staging buffer kept from an earlier upload, used again where it is large
+    /// `kept_staging`: a staging buffer kept from an earlier upload, used again where it is large
     /// enough ([`PendingUpload::staging`] gives this one's); `reuse`: volume images of
     /// textures made before (of the same volume), each taken where it is what a new one would
     /// be, the others freed.
@@ -440,7 +427,7 @@ impl SceneTextures {
         sample_distance: f32,
         env: Option<&EnvMap>,
         coarse: bool,
-        staging: Option<Arc<Buffer>>,
+        kept_staging: Option<Arc<Buffer>>,
         reuse: Vec<Image>,
     ) -> Result<(Self, PendingUpload), GpuError> {
         let mut staged = Staged {
@@ -523,7 +510,6 @@ impl SceneTextures {
         staged.uploads.push((staged.images.len(), levels));
         staged.images.push(img);
 
-        let kept = staging;
         let Staged {
             staging,
             uploads,
@@ -532,7 +518,7 @@ impl SceneTextures {
         } = staged;
         // The images made before that were not taken are freed.
         drop(pool);
-        let buffer = staging.into_kept(ctx, kept)?;
+        let buffer = staging.into_kept(ctx, kept_staging)?;
 
         use ash::vk::SamplerAddressMode as A;
         let linear_clamp = Sampler::new(
