@@ -9,7 +9,13 @@
 //! cargo run --release --example edit_costs -- datasets/ct-head.toml
 //! ```
 //!
-//! The first frame after a change that needs another shader variant includes compiling it.
+//! The first frame after a change that needs another shader variant includes compiling it,
+//! unless `--precompile` compiles each change's variant before its first frame, as the viewer
+//! does for the variants one click of its panel away once a view has settled:
+//!
+//! ```sh
+//! cargo run --release --example edit_costs -- datasets/ct-head.toml --precompile
+//! ```
 
 use std::time::Instant;
 
@@ -80,8 +86,12 @@ const CHANGES: [Change; 14] = [
 ];
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let path = std::env::args()
-        .nth(1)
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let precompile = args.iter().any(|a| a == "--precompile");
+    let path = args
+        .iter()
+        .find(|a| !a.starts_with("--"))
+        .cloned()
         .unwrap_or_else(|| "datasets/ct-head.toml".into());
     let scene = Scene::load(std::path::Path::new(&path))?;
     let mut p = PreparedScene::load(&scene)?;
@@ -92,7 +102,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut req = RenderRequest::new(127, 152);
     req.keep_coarse_volume = true;
     req.keep_staging = true;
-    let mut frame = |p: &PreparedScene| -> Result<String, Box<dyn std::error::Error>> {
+    let frame = |renderer: &mut Renderer, p: &PreparedScene| -> Result<String, Box<dyn std::error::Error>> {
         let start = Instant::now();
         let out = renderer.render(p, &req)?;
         Ok(format!(
@@ -102,7 +112,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             out.stats.upload_bytes as f64 / (1u64 << 20) as f64
         ))
     };
-    frame(&p)?;
+    frame(&mut renderer, &p)?;
     println!("| change | frames after it: wall ms / GPU ms / MiB copied in |");
     println!("|---|---|");
     for (name, change) in CHANGES {
@@ -113,7 +123,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 // As the viewer's worker does when the scene's environment changes.
                 p.env = EnvMap::for_scene(&p.scene.environment)?;
             }
-            frames.push(frame(&p)?);
+            if precompile {
+                // As the viewer's compile thread does, but at once.
+                if let Some(job) = renderer.precompile(&p, &req)? {
+                    let start = Instant::now();
+                    renderer.adopt(job.compile()?);
+                    eprintln!(
+                        "{name}: compiled ahead in {:.0} ms",
+                        start.elapsed().as_secs_f64() * 1e3
+                    );
+                }
+            }
+            frames.push(frame(&mut renderer, &p)?);
         }
         println!("| {name} | {} |", frames.join(", "));
     }

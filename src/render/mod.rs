@@ -36,7 +36,7 @@ use std::sync::Arc;
 
 use rayon::prelude::*;
 
-use crate::gpu::{ComputePipeline, Context, GpuError, MemoryUse, ShaderSource};
+use crate::gpu::{CompiledShader, ComputePipeline, Context, GpuError, MemoryUse, ShaderSource};
 use crate::scene::{Environment, Precision, SceneError};
 
 use shaders::Pass;
@@ -290,6 +290,10 @@ pub struct RenderStats {
     pub rect: [u32; 2],
     /// Precision the render actually used (lower than the scene's after an out-of-memory retry).
     pub precision: Precision,
+    /// Sweep pipelines compiled for this render: 0 where an earlier render or
+    /// [`Renderer::precompile`] built its variant (on a CPU driver a variant's take most of a
+    /// small render's time).
+    pub compiled: u32,
     /// What was reduced to fit into device memory, one line each (empty normally).
     pub reductions: Vec<String>,
     /// The lattice-Boltzmann pass, when the scene has one.
@@ -379,17 +383,49 @@ impl Renderer {
         }
     }
 
-    fn render_once(
+    /// The sweep pipelines that a render of `prepared` at `req` would compile first,
+    /// specialised (a few milliseconds each) and ready to be compiled on another thread; `None`
+    /// where they are all built. [`Renderer::adopt`] keeps them once compiled.
+    ///
+    /// The viewer compiles this way, on threads of the lowest priority, the variants that one click
+    /// of its panel would ask for, so that the click's frames compile nothing: a variant's
+    /// seven pipelines take 0.7–1 s on a CPU driver.
+    pub fn precompile(
         &mut self,
         prepared: &PreparedScene,
         req: &RenderRequest,
+    ) -> Result<Option<Precompile>, RenderError> {
+        let (_, _, key) = self.sweep_key(prepared, req, prepared.scene.quality.precision);
+        let missing = self.missing(key);
+        if missing.is_empty() {
+            return Ok(None);
+        }
+        Ok(Some(Precompile {
+            ctx: self.ctx.clone(),
+            key,
+            shaders: specialise(&mut self.sources, &missing, key)?,
+        }))
+    }
+
+    /// Keeps the pipelines of `compiled` for the renders that need them (where a render
+    /// compiled its own meanwhile, that one stays).
+    pub fn adopt(&mut self, compiled: Compiled) {
+        for (pass, p) in compiled.pipelines {
+            self.pipelines
+                .entry((pass, compiled.key))
+                .or_insert_with(|| Arc::new(p));
+        }
+    }
+
+    /// The features, plan and pipelines' key of a render of `prepared` at `req`.
+    fn sweep_key(
+        &self,
+        prepared: &PreparedScene,
+        req: &RenderRequest,
         precision: Precision,
-    ) -> Result<RenderOutput, RenderError> {
+    ) -> (Features, state::Plan, PipelineKey) {
         let mut features = prepared.features();
         features.deposit_image = !req.buffer_deposit_reads && state::deposit_image(&self.ctx, &features, req);
-        if features.lbm && self.lbm.is_none() {
-            self.lbm = Some(lbm::Pipelines::new(&self.ctx)?);
-        }
         let plan = state::plan(&self.ctx, prepared, req, &features);
         let key = PipelineKey {
             precision,
@@ -398,6 +434,29 @@ impl Renderer {
             safeguards_off: req.safeguards_off,
             spec: plan.spec,
         };
+        (features, plan, key)
+    }
+
+    /// The sweep's passes whose pipelines for `key` are not built yet.
+    fn missing(&self, key: PipelineKey) -> Vec<Pass> {
+        Pass::ALL
+            .into_iter()
+            .filter(|&pass| !self.pipelines.contains_key(&(pass, key)))
+            .collect()
+    }
+
+    fn render_once(
+        &mut self,
+        prepared: &PreparedScene,
+        req: &RenderRequest,
+        precision: Precision,
+    ) -> Result<RenderOutput, RenderError> {
+        let (features, plan, key) = self.sweep_key(prepared, req, precision);
+        if features.lbm && self.lbm.is_none() {
+            self.lbm = Some(lbm::Pipelines::new(&self.ctx)?);
+        }
+        let missing = self.missing(key);
+        let compiled = missing.len() as u32;
         let Renderer {
             ctx,
             sources,
@@ -405,10 +464,6 @@ impl Renderer {
             textures,
             lbm,
         } = self;
-        let missing: Vec<Pass> = Pass::ALL
-            .into_iter()
-            .filter(|&pass| !cache.contains_key(&(pass, key)))
-            .collect();
         // Pipelines not built before are compiled beside the scene's setup on the CPU (the
         // textures, the light tiles' spans), which needs none of them: on a CPU driver each
         // takes about as long, and either leaves a core idle now and then.
@@ -441,6 +496,59 @@ impl Renderer {
                 textures,
             )
         })
+        .map(|mut out| {
+            out.stats.compiled = compiled;
+            out
+        })
+    }
+}
+
+/// One shader variant's sweep pipelines, specialised, to be compiled on any thread
+/// ([`Renderer::precompile`]).
+pub struct Precompile {
+    ctx: Arc<Context>,
+    key: PipelineKey,
+    shaders: Vec<(Pass, String, CompiledShader)>,
+}
+
+/// Pipelines compiled from a [`Precompile`], for [`Renderer::adopt`].
+pub struct Compiled {
+    key: PipelineKey,
+    pipelines: Vec<(Pass, ComputePipeline)>,
+}
+
+impl Precompile {
+    /// Pipelines to compile.
+    pub fn len(&self) -> usize {
+        self.shaders.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.shaders.is_empty()
+    }
+
+    /// Compiles the pipelines one after another on the calling thread.
+    pub fn compile(self) -> Result<Compiled, RenderError> {
+        let pipelines = self
+            .shaders
+            .iter()
+            .map(|(pass, label, shader)| Ok((*pass, ComputePipeline::new(&self.ctx, label, shader)?)))
+            .collect::<Result<Vec<_>, RenderError>>()?;
+        Ok(Compiled {
+            key: self.key,
+            pipelines,
+        })
+    }
+}
+
+impl Compiled {
+    /// Pipelines compiled.
+    pub fn len(&self) -> usize {
+        self.pipelines.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.pipelines.is_empty()
     }
 }
 
@@ -467,6 +575,20 @@ fn compile(
     passes: &[Pass],
     key: PipelineKey,
 ) -> Result<Vec<(Pass, ComputePipeline)>, RenderError> {
+    let specialised = specialise(sources, passes, key)?;
+    let built = specialised
+        .par_iter()
+        .map(|(_, label, compiled)| ComputePipeline::new(ctx, label, compiled))
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(specialised.into_iter().map(|(pass, _, _)| pass).zip(built).collect())
+}
+
+/// The shaders of the sweep's `passes` specialised for `key`, each with its pipeline's label.
+fn specialise(
+    sources: &mut HashMap<&'static str, ShaderSource>,
+    passes: &[Pass],
+    key: PipelineKey,
+) -> Result<Vec<(Pass, String, CompiledShader)>, RenderError> {
     let mut specialised = Vec::new();
     for &pass in passes {
         let source = match sources.entry(pass.file()) {
@@ -495,11 +617,7 @@ fn compile(
         );
         specialised.push((pass, label, compiled));
     }
-    let built = specialised
-        .par_iter()
-        .map(|(_, label, compiled)| ComputePipeline::new(ctx, label, compiled))
-        .collect::<Result<Vec<_>, _>>()?;
-    Ok(specialised.into_iter().map(|(pass, _, _)| pass).zip(built).collect())
+    Ok(specialised)
 }
 
 /// Environment parameters: (rgb background, 1 when an environment map is used).
