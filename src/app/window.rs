@@ -152,8 +152,8 @@ impl App {
                     self.answered(job);
                     // What the interactive level costs on this machine, from the frames that
                     // made or copied no scene textures (the first filters the volumes to half
-                    // resolution; a new spacing makes new tables).
-                    if job.level == 0 && job.pass == 0 && stats.upload_bytes == 0 {
+                    // resolution; a new spacing makes new tables) and compiled no shaders.
+                    if job.level == 0 && job.pass == 0 && stats.upload_bytes == 0 && stats.compiled == 0 {
                         self.pace.record(duration_ms);
                     }
                     if self.progressive.finished(job, true) {
@@ -171,7 +171,8 @@ impl App {
                             );
                             // What the device spent of it, by pass; the rest is the CPU's
                             // (scene setup, recording, waiting) and the copy back. The upload:
-                            // what of the scene textures had to be made and copied anew.
+                            // what of the scene textures had to be made and copied anew; then
+                            // the pipelines compiled for it, if any.
                             let [light, view, listing, finish] = stats.pass_ms;
                             eprintln!(
                                 "gpu: {:.1} ms (light {light:.1}, view {view:.1}, listing {listing:.1}, finish {finish:.1}), other {:.1} ms, upload {:.1} MiB",
@@ -179,6 +180,9 @@ impl App {
                                 duration_ms - stats.gpu_ms,
                                 stats.upload_bytes as f64 / (1024.0 * 1024.0)
                             );
+                            if stats.compiled > 0 {
+                                eprintln!("compiled: {} pipelines", stats.compiled);
+                            }
                         }
                         if self.opts.orbit_frames > 0 {
                             self.opts.orbit_frames -= 1;
@@ -190,6 +194,17 @@ impl App {
                         s.frame_ms = duration_ms;
                         s.planes = stats.planes;
                         s.render_size = (image.width, image.height);
+                    }
+                }
+                Reply::Precompiled {
+                    variants,
+                    pipelines,
+                    ms,
+                } => {
+                    if self.opts.frame_log {
+                        eprintln!(
+                            "precompiled: {pipelines} pipelines for the {variants} variants one click away, {ms:.1} ms after the full frame"
+                        );
                     }
                 }
                 Reply::Cancelled { job } => {

@@ -4,21 +4,22 @@
 //! The Vulkan queue is only ever used from this thread; the window thread only sends requests
 //! (latest wins) and raises a cancel flag when a running refinement became outdated.
 
+use std::collections::VecDeque;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::{channel, Receiver, Sender};
+use std::sync::mpsc::{channel, Receiver, RecvTimeoutError, Sender, TryRecvError};
 use std::sync::Arc;
 use std::thread::JoinHandle;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use crate::render::{
-    jitter_sequence, EnvMap, PreparedScene, RenderError, RenderRequest, RenderStats, RenderedImage, Renderer,
-    SweepProgress, VolumeLayout,
+    jitter_sequence, Compiled, EnvMap, Precompile, PreparedScene, RenderError, RenderRequest, RenderStats,
+    RenderedImage, Renderer, SweepProgress, VolumeLayout,
 };
-use crate::scene::{Scene, VolumeSource};
+use crate::scene::{ClipPlane, LightTransport, MultipleScattering, Scene, Toggle, VolumeSource};
 use crate::{Classify, ExitClass};
 
-use super::progressive::{Job, ACCUMULATE};
+use super::progressive::{Job, ACCUMULATE, FULL};
 
 /// What the window asks for.
 pub enum Request {
@@ -69,6 +70,14 @@ pub enum Reply {
     Volume {
         frame: usize,
         histogram: Vec<f32>,
+    },
+    /// The shader variants one click of the panel away from the settled view are built:
+    /// `pipelines` compiled for `variants` on threads of the lowest priority, `ms` after the
+    /// view settled, so that such a click's frames compile nothing. Sent when any was compiled.
+    Precompiled {
+        variants: usize,
+        pipelines: usize,
+        ms: f64,
     },
 }
 
@@ -123,6 +132,220 @@ impl Drop for Worker {
     }
 }
 
+/// A render the window may ask for after one click of the panel: its scene and size.
+struct Variant {
+    scene: Scene,
+    width: u32,
+    height: u32,
+}
+
+/// The shader variants still to build for the settled view, the threads that compile them,
+/// and what building them took.
+#[derive(Default)]
+struct Precompiler {
+    variants: VecDeque<Variant>,
+    /// Threads compiling the variants' pipelines at the lowest priority, so that the render
+    /// thread's frames are neither held up nor slowed down by them: started with the first
+    /// variant to compile, they take each one's specialised shaders and hand back its
+    /// pipelines.
+    threads: Option<CompileThreads>,
+    /// Variants handed to the threads and not back yet.
+    in_flight: usize,
+    /// When the settled view's variants started, the variants looked at and the pipelines
+    /// compiled, for [`Reply::Precompiled`].
+    started: Option<Instant>,
+    looked_at: usize,
+    pipelines: usize,
+}
+
+struct CompileThreads {
+    jobs: Option<Sender<Precompile>>,
+    done: Receiver<Result<Compiled, RenderError>>,
+    handles: Vec<JoinHandle<()>>,
+}
+
+impl CompileThreads {
+    /// One per core: each compiles a variant's pipelines one after another.
+    fn start() -> CompileThreads {
+        let (jobs, job_rx) = channel::<Precompile>();
+        let job_rx = Arc::new(std::sync::Mutex::new(job_rx));
+        let (done_tx, done) = channel();
+        let n = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let handles = (0..n)
+            .filter_map(|_| {
+                let (job_rx, done_tx) = (job_rx.clone(), done_tx.clone());
+                std::thread::Builder::new()
+                    .name("caustica compile".into())
+                    .spawn(move || {
+                        if let Err(e) =
+                            thread_priority::set_current_thread_priority(thread_priority::ThreadPriority::Min)
+                        {
+                            log::debug!("a compile thread keeps its priority: {e:?}");
+                        }
+                        loop {
+                            let job = match job_rx.lock() {
+                                Ok(rx) => rx.recv(),
+                                Err(_) => break,
+                            };
+                            let Ok(job) = job else { break };
+                            if done_tx.send(job.compile()).is_err() {
+                                break;
+                            }
+                        }
+                    })
+                    .ok()
+            })
+            .collect();
+        CompileThreads {
+            jobs: Some(jobs),
+            done,
+            handles,
+        }
+    }
+}
+
+impl Drop for CompileThreads {
+    /// Waits for the pipelines being compiled: no GPU object outlives the render thread.
+    fn drop(&mut self) {
+        self.jobs.take();
+        for h in self.handles.drain(..) {
+            let _ = h.join();
+        }
+    }
+}
+
+impl Precompiler {
+    /// Starts over with the variants one click away from `frames` (the settled view's
+    /// requests, the level a click's first frame renders at first).
+    fn start(&mut self, frames: &[(&Scene, u32, u32)]) {
+        self.variants.clear();
+        for &(scene, width, height) in frames {
+            self.variants.extend(
+                one_click_variants(scene)
+                    .into_iter()
+                    .map(|scene| Variant { scene, width, height }),
+            );
+        }
+        self.started = Some(Instant::now());
+        self.looked_at = 0;
+        self.pipelines = 0;
+    }
+
+    /// The view is being edited: what is one click away is worked out again when it settles
+    /// (the variants being compiled are still taken).
+    fn forget(&mut self) {
+        self.variants.clear();
+        self.started = None;
+    }
+
+    /// Whether variants are left to compile or being compiled.
+    fn busy(&self) -> bool {
+        self.in_flight > 0 || !self.variants.is_empty()
+    }
+
+    /// Takes the pipelines the threads have compiled and hands each idle one the next variant
+    /// that needs any. Returns the reply to send once the settled view's last variant is built.
+    fn poll(&mut self, renderer: &mut Renderer, prepared: &mut PreparedScene) -> Option<Reply> {
+        if let Some(t) = &self.threads {
+            while self.in_flight > 0 {
+                match t.done.try_recv() {
+                    Ok(Ok(compiled)) => {
+                        self.pipelines += compiled.len();
+                        renderer.adopt(compiled);
+                    }
+                    // Its render, if the window asks for it, reports the error.
+                    Ok(Err(e)) => log::debug!("a variant was not compiled ahead: {e}"),
+                    Err(TryRecvError::Empty) => break,
+                    Err(TryRecvError::Disconnected) => {
+                        self.in_flight = 0;
+                        break;
+                    }
+                }
+                self.in_flight -= 1;
+            }
+        }
+        loop {
+            let idle = self.threads.as_ref().map_or(1, |t| t.handles.len()) > self.in_flight;
+            if !idle {
+                break;
+            }
+            let Some(v) = self.variants.pop_front() else {
+                break;
+            };
+            self.looked_at += 1;
+            // The variant's scene differs from the one prepared in its switches alone (the
+            // same volume and transfer functions): in place for the plan, then put back.
+            let kept = std::mem::replace(&mut prepared.scene, v.scene);
+            let req = frame_request(&prepared.scene, v.width, v.height, 0);
+            let job = renderer.precompile(prepared, &req);
+            prepared.scene = kept;
+            match job {
+                Ok(Some(job)) => {
+                    let threads = self.threads.get_or_insert_with(CompileThreads::start);
+                    match threads.jobs.as_ref().map(|jobs| jobs.send(job)) {
+                        Some(Ok(())) if !threads.handles.is_empty() => self.in_flight += 1,
+                        _ => {
+                            self.variants.clear();
+                            break;
+                        }
+                    }
+                }
+                Ok(None) => {}
+                Err(e) => log::debug!("a variant was not specialised ahead: {e}"),
+            }
+        }
+        if self.busy() || self.pipelines == 0 {
+            return None;
+        }
+        let started = self.started.take()?;
+        Some(Reply::Precompiled {
+            variants: self.looked_at,
+            pipelines: std::mem::take(&mut self.pipelines),
+            ms: started.elapsed().as_secs_f64() * 1e3,
+        })
+    }
+}
+
+/// `scene` after each click of the panel's switches that picks another shader variant
+/// (`panel::sections`' effects and clip): refraction, the light's transport, the caustic
+/// correction of the backward transport, soft light, highlights and the clip plane. Most
+/// likely first; variants that come out the same are compiled once.
+fn one_click_variants(scene: &Scene) -> Vec<Scene> {
+    let mut out = Vec::new();
+    let mut with = |change: &dyn Fn(&mut Scene)| {
+        let mut s = scene.clone();
+        change(&mut s);
+        out.push(s);
+    };
+    for t in [Toggle::Off, Toggle::Auto, Toggle::On] {
+        if t != scene.quality.refraction {
+            with(&|s| s.quality.refraction = t);
+        }
+    }
+    with(&|s| s.quality.light_filter = !s.quality.light_filter);
+    with(&|s| s.quality.specular = !s.quality.specular);
+    match scene.quality.light_transport {
+        LightTransport::Beams if scene.quality.multiple_scattering != MultipleScattering::Spread => {
+            with(&|s| s.quality.light_transport = LightTransport::Backward)
+        }
+        LightTransport::Beams => {}
+        LightTransport::Backward => {
+            with(&|s| s.quality.light_transport = LightTransport::Beams);
+            with(&|s| s.quality.intensity_correction = !s.quality.intensity_correction);
+        }
+    }
+    with(&|s| {
+        s.clip = match s.clip {
+            Some(_) => None,
+            None => Some(ClipPlane {
+                normal: [0.0, 0.0, 1.0],
+                offset: 0.0,
+            }),
+        }
+    });
+    out
+}
+
 fn run(
     mut renderer: Renderer,
     mut prepared: PreparedScene,
@@ -135,23 +358,124 @@ fn run(
         let _ = replies.send(r);
         wake();
     };
-    while let Ok(first) = requests.recv() {
+    // Once a view has settled to its full frame, the variants one click away are compiled
+    // beside it, and its accumulation passes wait for them: a click is worth more than the
+    // passes it delays, and its frames then compile nothing (0.7–1 s per variant on a CPU
+    // driver).
+    let mut precompiler = Precompiler::default();
+    // The newest interactive frame's request, for the variants' first frames.
+    let mut interactive: Option<(u64, Scene, u32, u32)> = None;
+    // An accumulation pass waiting for the variants.
+    let mut held: Option<Request> = None;
+    loop {
+        let mut batch = Vec::new();
+        let mut closed = false;
+        if precompiler.busy() {
+            // The compile threads are looked at between requests.
+            match requests.recv_timeout(COMPILE_POLL) {
+                Ok(r) => batch.push(r),
+                Err(RecvTimeoutError::Timeout) => {}
+                Err(RecvTimeoutError::Disconnected) => closed = true,
+            }
+        } else if held.is_none() {
+            match requests.recv() {
+                Ok(r) => batch.push(r),
+                Err(_) => return,
+            }
+        }
+        while !closed {
+            match requests.try_recv() {
+                Ok(r) => batch.push(r),
+                Err(TryRecvError::Empty) => break,
+                Err(TryRecvError::Disconnected) => closed = true,
+            }
+        }
         // Screenshots are all kept, in order; of the frames only the newest matters.
-        let mut frame = None;
-        for request in std::iter::once(first).chain(requests.try_iter()) {
+        let mut frame = held.take();
+        for request in batch {
             match request {
                 Request::Frame { .. } => {
                     if let Some(Request::Frame { job, .. }) = frame.replace(request) {
                         send(Reply::Cancelled { job });
                     }
                 }
-                screenshot => handle(&mut renderer, &mut prepared, allow_downsample, screenshot, &send),
+                screenshot => {
+                    handle(&mut renderer, &mut prepared, allow_downsample, screenshot, &send);
+                }
             }
         }
-        if let Some(f) = frame {
-            handle(&mut renderer, &mut prepared, allow_downsample, f, &send);
+        if let Some(reply) = precompiler.poll(&mut renderer, &mut prepared) {
+            send(reply);
+        }
+        // Once the window has gone, a frame would be rendered for no one.
+        if closed {
+            return;
+        }
+        let Some(f) = frame else {
+            continue;
+        };
+        let Request::Frame {
+            job,
+            ref scene,
+            width,
+            height,
+            ..
+        } = f
+        else {
+            unreachable!("only frames are kept")
+        };
+        if job.level == FULL && job.pass > 0 && precompiler.busy() {
+            held = Some(f);
+            continue;
+        }
+        let request = (job, (**scene).clone(), width, height);
+        let rendered = handle(&mut renderer, &mut prepared, allow_downsample, f, &send);
+        let (job, scene, width, height) = request;
+        if job.level < FULL {
+            precompiler.forget();
+        }
+        if job.level == 0 {
+            interactive = Some((job.version, scene.clone(), width, height));
+        }
+        if rendered && job.level == FULL && job.pass == 0 {
+            let mut frames = Vec::new();
+            if let Some((version, s, w, h)) = &interactive {
+                if *version == job.version {
+                    frames.push((s, *w, *h));
+                }
+            }
+            frames.push((&scene, width, height));
+            precompiler.start(&frames);
+            if let Some(reply) = precompiler.poll(&mut renderer, &mut prepared) {
+                send(reply);
+            }
         }
     }
+}
+
+/// How often the render thread looks at the compile threads while it has nothing to render.
+const COMPILE_POLL: Duration = Duration::from_millis(20);
+
+/// The request for a frame of `scene` at `width` × `height`, `pass` its accumulation pass
+/// (the cancel flag and the progress aside).
+fn frame_request(scene: &Scene, width: u32, height: u32, pass: u32) -> RenderRequest {
+    let mut req = RenderRequest::new(width, height);
+    // The coarse levels read the volumes' half-resolution level: made with the first frame,
+    // so no level uploads the volumes again.
+    req.keep_coarse_volume = true;
+    // A drag of the data window or of η writes the volumes' staging buffer again.
+    req.keep_staging = true;
+    // The levels that sample the half-resolution volume keep the textures' layout (a turn
+    // would make them anew whenever it brings another layout's axis nearest the view); those
+    // at full resolution lay them out for their view, made anew once after such a turn (0.8 s
+    // for the CT head, which the full frame and its accumulation passes gain back:
+    // `VolumeLayout`).
+    if scene.quality.volume_level > 0 {
+        req.volume_layout = VolumeLayout::Kept;
+    }
+    // Accumulation passes move the planes and the light grid (pass 0 does not).
+    req.jitter = jitter_sequence(pass, ACCUMULATE);
+    req
 }
 
 /// Makes `prepared` the data of `scene`. A new frame of a time series is loaded here, on the
@@ -196,13 +520,15 @@ fn set_scene(
     Ok(())
 }
 
+/// Renders a frame or a screenshot and sends what came of it. Returns whether a frame was
+/// rendered.
 fn handle(
     renderer: &mut Renderer,
     prepared: &mut PreparedScene,
     allow_downsample: bool,
     request: Request,
     send: &dyn Fn(Reply),
-) {
+) -> bool {
     match request {
         Request::Frame {
             job,
@@ -215,32 +541,17 @@ fn handle(
         } => {
             if cancel.load(Ordering::Relaxed) {
                 send(Reply::Cancelled { job });
-                return;
+                return false;
             }
             let start = Instant::now();
-            let half_resolution = scene.quality.volume_level > 0;
             let result = set_scene(renderer, prepared, allow_downsample, *scene, send).and_then(|()| {
-                let mut req = RenderRequest::new(width, height);
+                let mut req = frame_request(&prepared.scene, width, height, job.pass);
                 req.cancel = Some(cancel);
                 req.sweep_progress = Some(progress);
                 req.pass_timings = pass_timings;
-                // The coarse levels read the volumes' half-resolution level: made with the
-                // first frame, so no level uploads the volumes again.
-                req.keep_coarse_volume = true;
-                // A drag of the data window or of η writes the volumes' staging buffer again.
-                req.keep_staging = true;
-                // The levels that sample the half-resolution volume keep the textures' layout
-                // (a turn would make them anew whenever it brings another layout's axis nearest
-                // the view); those at full resolution lay them out for their view, made anew
-                // once after such a turn (0.8 s for the CT head, which the full frame and its
-                // accumulation passes gain back: `VolumeLayout`).
-                if half_resolution {
-                    req.volume_layout = VolumeLayout::Kept;
-                }
-                // Accumulation passes move the planes and the light grid (pass 0 does not).
-                req.jitter = jitter_sequence(job.pass, ACCUMULATE);
                 renderer.render(prepared, &req)
             });
+            let rendered = result.is_ok();
             send(match result {
                 Ok(out) => Reply::Frame {
                     job,
@@ -255,6 +566,7 @@ fn handle(
                     class: e.exit_class(),
                 },
             });
+            rendered
         }
         Request::Screenshot {
             scene,
@@ -267,6 +579,7 @@ fn handle(
                 .map_err(|e| e.to_string())
                 .and_then(|out| super::save::save_image(&out.image, &path).map_err(|e| format!("{e:#}")));
             send(Reply::Saved { path, result });
+            false
         }
     }
 }
@@ -275,6 +588,7 @@ fn handle(
 mod tests {
     use super::*;
     use crate::gpu::{Context, ContextDesc, DeviceSelector};
+    use crate::render::Features;
     use crate::scene::{builtin, VolumeSource};
     use std::time::Duration;
 
@@ -346,6 +660,7 @@ mod tests {
                 }
                 Reply::Failed { message, .. } => panic!("{message}"),
                 Reply::Volume { .. } => panic!("the volume did not change"),
+                Reply::Precompiled { .. } => panic!("no full frame was asked for"),
             }
         }
         worker.stop();
@@ -378,6 +693,83 @@ mod tests {
         );
         assert_eq!(ctx.validation_errors(), 0, "{:?}", ctx.validation_messages());
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// Once a view settles to its full frame, the render thread compiles the shader variants
+    /// one click of the panel away, at the interactive level's request and the full frame's,
+    /// before the accumulation pass asked for meanwhile: each such click's frames then compile
+    /// nothing, while a view two clicks away still compiles its variant.
+    #[test]
+    fn the_variants_one_click_away_are_compiled_before_the_accumulation_passes() {
+        let ctx = Context::new(&ContextDesc::from_env(DeviceSelector::Auto)).expect("Vulkan device");
+        // Planes half a voxel apart, so that the full frame's view samples read the beams back
+        // from two planes and the interactive level's from one: two variants of each scene.
+        let mut scene = small_scene();
+        scene.quality.sample_distance = 0.5;
+        // The interactive level's scene, as the window makes it: planes further apart, fewer
+        // beams, the half-resolution volume, a smaller image.
+        let mut coarse = scene.clone();
+        coarse.quality.sample_distance *= 6.0;
+        coarse.quality.beams_per_texel *= 0.25;
+        coarse.quality.volume_level = 1;
+        let prepared = PreparedScene::load(&scene).unwrap();
+        let mut worker = Worker::start(Renderer::new(ctx.clone()).unwrap(), prepared, true, || {});
+        let progress = Arc::new(SweepProgress::default());
+        let job = |version, level, pass| Job { version, level, pass };
+        let reply = |worker: &Worker| worker.replies.recv_timeout(Duration::from_secs(300)).expect("a reply");
+        let compiled = |worker: &Worker, request: Request| {
+            worker.send(request);
+            match reply(worker) {
+                Reply::Frame { stats, .. } => stats.compiled,
+                Reply::Failed { message, .. } => panic!("{message}"),
+                _ => panic!("unexpected reply"),
+            }
+        };
+        assert!(compiled(&worker, frame(job(1, 0, 0), &coarse, (20, 15), false, &progress)) > 0);
+        assert!(compiled(&worker, frame(job(1, FULL, 0), &scene, (40, 30), false, &progress)) > 0);
+        // The first accumulation pass, asked for once the full frame is on screen, comes after
+        // the variants.
+        worker.send(frame(job(1, FULL, 1), &scene, (40, 30), false, &progress));
+        let mut replies = Vec::new();
+        while replies.len() < 2 {
+            match reply(&worker) {
+                Reply::Precompiled {
+                    variants, pipelines, ..
+                } => {
+                    assert_eq!(variants, 2 * one_click_variants(&scene).len());
+                    assert!(pipelines > 0);
+                    replies.push("precompiled");
+                }
+                Reply::Frame { job, stats, .. } => {
+                    assert_eq!(job.pass, 1);
+                    assert_eq!(stats.compiled, 0);
+                    replies.push("accumulation pass");
+                }
+                Reply::Failed { message, .. } => panic!("{message}"),
+                _ => panic!("unexpected reply"),
+            }
+        }
+        assert_eq!(replies, ["precompiled", "accumulation pass"]);
+        let mut version = 2;
+        for (fine, coarse) in one_click_variants(&scene).iter().zip(one_click_variants(&coarse)) {
+            for (s, size, level) in [(&coarse, (20, 15), 0), (fine, (40, 30), FULL)] {
+                let n = compiled(&worker, frame(job(version, level, 0), s, size, false, &progress));
+                assert_eq!(
+                    n,
+                    0,
+                    "{:?} at level {level}",
+                    Features::for_scene(s, &s.transfer_functions().unwrap())
+                );
+            }
+            version += 1;
+        }
+        // Two clicks away: refraction off and no soft light.
+        let mut two = scene.clone();
+        two.quality.refraction = Toggle::Off;
+        two.quality.light_filter = !two.quality.light_filter;
+        assert!(compiled(&worker, frame(job(version, FULL, 0), &two, (40, 30), false, &progress)) > 0);
+        worker.stop();
+        assert_eq!(ctx.validation_errors(), 0, "{:?}", ctx.validation_messages());
     }
 
     /// A request for another frame of a time series loads it on the render thread: the
