@@ -16,6 +16,8 @@
 //! ```sh
 //! cargo run --release --example edit_costs -- datasets/ct-head.toml --precompile
 //! ```
+//!
+//! `--only NAME` times the changes whose names contain NAME (`--only window`), for profiling.
 
 use std::time::Instant;
 
@@ -88,9 +90,17 @@ const CHANGES: [Change; 14] = [
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let precompile = args.iter().any(|a| a == "--precompile");
+    // `--only NAME`: the changes whose names contain NAME, for profiling one of them.
+    let only = args
+        .iter()
+        .position(|a| a == "--only")
+        .and_then(|i| args.get(i + 1))
+        .cloned();
     let path = args
         .iter()
-        .find(|a| !a.starts_with("--"))
+        .enumerate()
+        .find(|&(i, a)| !a.starts_with("--") && (i == 0 || args[i - 1] != "--only"))
+        .map(|(_, a)| a)
         .cloned()
         .unwrap_or_else(|| "datasets/ct-head.toml".into());
     let scene = Scene::load(std::path::Path::new(&path))?;
@@ -116,6 +126,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!("| change | frames after it: wall ms / GPU ms / MiB copied in |");
     println!("|---|---|");
     for (name, change) in CHANGES {
+        if only.as_ref().is_some_and(|o| !name.contains(o.as_str())) {
+            continue;
+        }
         let mut frames = Vec::new();
         for on in [true, false, true, false] {
             change(&mut p, on);
