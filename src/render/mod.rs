@@ -387,9 +387,9 @@ impl Renderer {
     /// specialised (a few milliseconds each) and ready to be compiled on another thread; `None`
     /// where they are all built. [`Renderer::adopt`] keeps them once compiled.
     ///
-    /// The viewer compiles this way, on threads of the lowest priority, the variants that one click
-    /// of its panel would ask for, so that the click's frames compile nothing: a variant's
-    /// seven pipelines take 0.7–1 s on a CPU driver.
+    /// The viewer compiles this way, on threads of the lowest priority, the variants that one
+    /// click of its panel would ask for, so that the click's frames compile nothing: a
+    /// variant's seven pipelines take 0.7–1 s on a CPU driver.
     pub fn precompile(
         &mut self,
         prepared: &PreparedScene,
