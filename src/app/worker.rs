@@ -337,10 +337,7 @@ fn one_click_variants(scene: &Scene) -> Vec<Scene> {
     with(&|s| {
         s.clip = match s.clip {
             Some(_) => None,
-            None => Some(ClipPlane {
-                normal: [0.0, 0.0, 1.0],
-                offset: 0.0,
-            }),
+            None => Some(ClipPlane::CENTRE_Z),
         }
     });
     out
@@ -414,28 +411,20 @@ fn run(
         let Some(f) = frame else {
             continue;
         };
-        let Request::Frame {
-            job,
-            ref scene,
-            width,
-            height,
-            ..
-        } = f
-        else {
+        let Request::Frame { job, width, height, .. } = f else {
             unreachable!("only frames are kept")
         };
         if job.level == FULL && job.pass > 0 && precompiler.busy() {
             held = Some(f);
             continue;
         }
-        let request = (job, (**scene).clone(), width, height);
+        // A frame rendered leaves its scene in `prepared` (`set_scene`).
         let rendered = handle(&mut renderer, &mut prepared, allow_downsample, f, &send);
-        let (job, scene, width, height) = request;
         if job.level < FULL {
             precompiler.forget();
         }
-        if job.level == 0 {
-            interactive = Some((job.version, scene.clone(), width, height));
+        if rendered && job.level == 0 {
+            interactive = Some((job.version, prepared.scene.clone(), width, height));
         }
         if rendered && job.level == FULL && job.pass == 0 {
             let mut frames = Vec::new();
@@ -444,7 +433,7 @@ fn run(
                     frames.push((s, *w, *h));
                 }
             }
-            frames.push((&scene, width, height));
+            frames.push((&prepared.scene, width, height));
             precompiler.start(&frames);
             if let Some(reply) = precompiler.poll(&mut renderer, &mut prepared) {
                 send(reply);

@@ -518,15 +518,6 @@ pub struct Compiled {
 }
 
 impl Precompile {
-    /// Pipelines to compile.
-    pub fn len(&self) -> usize {
-        self.shaders.len()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.shaders.is_empty()
-    }
-
     /// Compiles the pipelines one after another on the calling thread.
     pub fn compile(self) -> Result<Compiled, RenderError> {
         let pipelines = self

@@ -197,6 +197,14 @@ pub struct ClipPlane {
     pub offset: f32,
 }
 
+impl ClipPlane {
+    /// Through the volume's centre, facing along z: the plane the viewer's clip switch puts in.
+    pub const CENTRE_Z: ClipPlane = ClipPlane {
+        normal: [0.0, 0.0, 1.0],
+        offset: 0.0,
+    };
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -284,10 +284,7 @@ impl ViewState {
     fn clip_ui(&mut self, ui: &mut Ui) {
         let mut on = self.scene.clip.is_some();
         if ui.checkbox(&mut on, "clip").changed() {
-            self.scene.clip = on.then_some(ClipPlane {
-                normal: [0.0, 0.0, 1.0],
-                offset: 0.0,
-            });
+            self.scene.clip = on.then_some(ClipPlane::CENTRE_Z);
         }
         if let Some(c) = &mut self.scene.clip {
             // Orientation as two angles; the normal is kept unit length.
