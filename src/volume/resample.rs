@@ -10,6 +10,20 @@ pub trait Channels: Copy + Send + Sync {
     const N: usize;
     fn get(&self) -> [f32; 4];
     fn put(v: [f32; 4]) -> Self;
+    /// The first [`Channels::N`] channels of [`Channels::get`] of every texel of `src`, one
+    /// after another into `dst` (N floats per texel); a format whose conversion has a faster
+    /// form for many texels at once overrides it (the same values).
+    fn get_all(src: &[Self], dst: &mut [f32]) {
+        for (d, s) in dst.chunks_exact_mut(Self::N).zip(src) {
+            d.copy_from_slice(&s.get()[..Self::N]);
+        }
+    }
+    /// [`Channels::put`] of every value of `src` into `dst` (of the same length), likewise.
+    fn put_all(src: &[[f32; 4]], dst: &mut [Self]) {
+        for (d, s) in dst.iter_mut().zip(src) {
+            *d = Self::put(*s);
+        }
+    }
 }
 
 impl Channels for f32 {
@@ -63,24 +77,40 @@ pub fn resample_texels<T: Channels>(texels: &[T], dims: [usize; 3], to: [usize; 
     let [wx, wy, wz] = [0, 1, 2].map(|a| axis_weights(dims[a], to[a]));
     let [mx, my, _] = to;
     let mut out = vec![T::put([0.0; 4]); mx * my * wz.len()];
+    // Each target row converts the few source rows it reads to floats first, a row at a time
+    // ([`Channels::get_all`], into a buffer that stays in the cache), and its sums back
+    // likewise: the same sums in the same order as converting each texel where it is read
+    // (the same texels), without a conversion call per read (the CT head's gradient volume's
+    // half level in about a third of the time).
     out.par_chunks_mut(mx * my).zip(&wz).for_each(|(slice, zs)| {
+        let n = T::N;
+        let most = wy.iter().map(Vec::len).max().unwrap_or(0);
+        let mut floats = vec![0.0f32; zs.len() * most * nx * n];
+        let mut sums = vec![[0.0f32; 4]; mx];
         for (yj, ys) in wy.iter().enumerate() {
-            for (xj, xs) in wx.iter().enumerate() {
-                let mut sum = [0.0f32; 4];
-                for &(z, fz) in zs {
-                    for &(y, fy) in ys {
-                        let row = (z * ny + y) * nx;
+            // Row (iz, iy) at k = iz · ys.len() + iy.
+            let rows = zs
+                .iter()
+                .flat_map(|&(z, _)| ys.iter().map(move |&(y, _)| (z * ny + y) * nx));
+            for (row, to) in rows.zip(floats.chunks_exact_mut(nx * n)) {
+                T::get_all(&texels[row..row + nx], to);
+            }
+            for (sum, xs) in sums.iter_mut().zip(&wx) {
+                *sum = [0.0f32; 4];
+                for (iz, &(_, fz)) in zs.iter().enumerate() {
+                    for (iy, &(_, fy)) in ys.iter().enumerate() {
+                        let row = &floats[(iz * ys.len() + iy) * nx * n..][..nx * n];
                         for &(x, fx) in xs {
                             let w = fz * fy * fx;
-                            let v = texels[row + x].get();
-                            for c in 0..T::N {
+                            let v = &row[x * n..x * n + n];
+                            for c in 0..n {
                                 sum[c] += w * v[c];
                             }
                         }
                     }
                 }
-                slice[yj * mx + xj] = T::put(sum);
             }
+            T::put_all(&sums, &mut slice[yj * mx..(yj + 1) * mx]);
         }
     });
     out
