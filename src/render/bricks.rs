@@ -5,8 +5,6 @@
 //! rays whose next segments lie in empty bricks; with refraction the bricks where η changes
 //! count too (`add_refracting`), and a tile is skipped only until one of its rays is bent.
 
-use rayon::prelude::*;
-
 use super::occupancy::ValueRanges;
 use crate::transfer::TransferFunctions;
 
@@ -65,8 +63,12 @@ pub fn visible_bricks(ranges: &ValueRanges, tf: &TransferFunctions) -> Bricks {
 /// differ from the volume's) within a voxel of the brick has a gradient other than zero. A
 /// view ray that has not been bent yet skips only bricks where neither happens.
 pub fn add_refracting(bricks: &mut Bricks, dims: [usize; 3], texels: &[[half::f16; 4]], gradient_dims: [usize; 3]) {
+    add_refracting_where(bricks, dims, &super::gradient::bend_map(texels), gradient_dims);
+}
+
+/// [`add_refracting`] from where each texel bends ([`super::gradient::bend_map`]).
+pub fn add_refracting_where(bricks: &mut Bricks, dims: [usize; 3], bends: &[bool], gradient_dims: [usize; 3]) {
     let nb = bricks.dims.map(|n| n as usize);
-    let [gx, gy, _] = gradient_dims;
     // The gradient voxels over brick i along an axis, one voxel wider on each side.
     let range = |i: usize, a: usize| {
         let scale = gradient_dims[a] as f64 / dims[a] as f64;
@@ -74,20 +76,13 @@ pub fn add_refracting(bricks: &mut Bricks, dims: [usize; 3], texels: &[[half::f1
         let hi = (((i + 1) * BRICK) as f64 * scale).ceil() as usize;
         lo.saturating_sub(1)..(hi + 1).min(gradient_dims[a])
     };
-    bricks.flags.par_iter_mut().enumerate().for_each(|(b, flag)| {
-        if *flag != 0 {
-            return;
+    let spans = [0, 1, 2].map(|a| (0..nb[a]).map(|i| range(i, a)).collect::<Vec<_>>());
+    let changes = super::occupancy::over_boxes(bends, gradient_dims, &spans, false, |&b| b, |a, b| a || b);
+    for (flag, changes) in bricks.flags.iter_mut().zip(changes) {
+        if *flag == 0 {
+            *flag = u32::from(changes);
         }
-        let (bx, by, bz) = (b % nb[0], (b / nb[0]) % nb[1], b / (nb[0] * nb[1]));
-        let xs = range(bx, 0);
-        let changes = range(bz, 2).any(|z| {
-            range(by, 1).any(|y| {
-                let row = (z * gy + y) * gx;
-                texels[row + xs.start..row + xs.end].iter().any(super::gradient::bends)
-            })
-        });
-        *flag = u32::from(changes);
-    });
+    }
 }
 
 #[cfg(test)]

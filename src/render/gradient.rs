@@ -131,6 +131,11 @@ pub fn bends(texel: &[half::f16; 4]) -> bool {
     texel[..3].iter().any(|g| g.to_bits() & 0x7fff != 0)
 }
 
+/// [`bends`] of every texel.
+pub fn bend_map(texels: &[[half::f16; 4]]) -> Vec<bool> {
+    texels.par_iter().map(bends).collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

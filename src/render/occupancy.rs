@@ -59,24 +59,23 @@ impl ValueRanges {
         edge: usize,
         reach: impl Fn(usize, usize) -> (std::ops::Range<usize>, bool) + Sync,
     ) -> ValueRanges {
-        let [nx, ny, nz] = dims;
-        let (cells, ranges) = per_cell(dims, edge, |[cx, cy, cz]| {
-            let (mut lo, mut hi) = (u16::MAX, 0u16);
-            let ((xs, bx), (ys, by), (zs, bz)) = (reach(cx, nx), reach(cy, ny), reach(cz, nz));
-            for z in zs {
-                for y in ys.clone() {
-                    let row = (z * ny + y) * nx;
-                    for &v in &samples[row + xs.start..row + xs.end] {
-                        lo = lo.min(v);
-                        hi = hi.max(v);
-                    }
-                }
+        let cells = dims.map(|d| d.div_ceil(edge).max(1));
+        let spans = [0, 1, 2].map(|a| (0..cells[a]).map(|i| reach(i, dims[a]).0).collect::<Vec<_>>());
+        let border = [0, 1, 2].map(|a| (0..cells[a]).map(|i| reach(i, dims[a]).1).collect::<Vec<_>>());
+        let mut ranges = over_boxes(
+            samples,
+            dims,
+            &spans,
+            [u16::MAX, 0],
+            |&v| [v, v],
+            |a, b| [a[0].min(b[0]), a[1].max(b[1])],
+        );
+        for (c, range) in ranges.iter_mut().enumerate() {
+            let [cx, cy, cz] = [c % cells[0], (c / cells[0]) % cells[1], c / (cells[0] * cells[1])];
+            if border[0][cx] || border[1][cy] || border[2][cz] {
+                range[0] = 0;
             }
-            if bx || by || bz {
-                lo = 0;
-            }
-            [lo, hi]
-        });
+        }
         ValueRanges {
             ranges,
             cells,
@@ -105,15 +104,52 @@ impl ValueRanges {
     }
 }
 
-/// The cells of `edge` voxels over `voxels` along each axis, and `cell` of each (x fastest),
-/// computed in parallel.
-fn per_cell<T: Send>(voxels: [usize; 3], edge: usize, cell: impl Fn([usize; 3]) -> T + Sync) -> ([usize; 3], Vec<T>) {
-    let cells = voxels.map(|d| d.div_ceil(edge).max(1));
-    let values = (0..cells[0] * cells[1] * cells[2])
-        .into_par_iter()
-        .map(|c| cell([c % cells[0], (c / cells[0]) % cells[1], c / (cells[0] * cells[1])]))
-        .collect();
-    (cells, values)
+/// Per box (x fastest) of `spans[0][i] × spans[1][j] × spans[2][k]` voxels of a `dims`
+/// volume, `combine` of `leaf` of its voxels (`empty` where it has none): reduced along x,
+/// then y, then z, so that each voxel is read once per box along x that holds it rather than
+/// once per box (the boxes overlap by a voxel or more on each side). For an associative and
+/// commutative `combine` (min, max, or) the same values as reducing each box at once: the
+/// CT head's value ranges in about a fifth of the time.
+pub(crate) fn over_boxes<V: Sync, T: Copy + Send + Sync>(
+    values: &[V],
+    dims: [usize; 3],
+    spans: &[Vec<std::ops::Range<usize>>; 3],
+    empty: T,
+    leaf: impl Fn(&V) -> T + Sync,
+    combine: impl Fn(T, T) -> T + Sync,
+) -> Vec<T> {
+    let [nx, ny, nz] = dims;
+    assert_eq!(values.len(), nx * ny * nz, "values of a {nx}×{ny}×{nz} volume");
+    let [bx, by, bz] = [0, 1, 2].map(|a| spans[a].len());
+    let fold = |range: std::ops::Range<usize>, at: &dyn Fn(usize) -> T| range.fold(empty, |acc, i| combine(acc, at(i)));
+    // Along x: per row, each box's span of it.
+    let mut rows = vec![empty; nz * ny * bx];
+    rows.par_chunks_mut(ny * bx).enumerate().for_each(|(z, slice)| {
+        for y in 0..ny {
+            let row = &values[(z * ny + y) * nx..][..nx];
+            for (i, xs) in spans[0].iter().enumerate() {
+                slice[y * bx + i] = fold(xs.clone(), &|x| leaf(&row[x]));
+            }
+        }
+    });
+    // Along y: per slice.
+    let mut planes = vec![empty; nz * by * bx];
+    planes.par_chunks_mut(by * bx).enumerate().for_each(|(z, slice)| {
+        let rows = &rows[z * ny * bx..][..ny * bx];
+        for (j, ys) in spans[1].iter().enumerate() {
+            for i in 0..bx {
+                slice[j * bx + i] = fold(ys.clone(), &|y| rows[y * bx + i]);
+            }
+        }
+    });
+    // Along z.
+    let mut out = vec![empty; bz * by * bx];
+    out.par_chunks_mut(by * bx).enumerate().for_each(|(k, slice)| {
+        for (c, v) in slice.iter_mut().enumerate() {
+            *v = fold(spans[2][k].clone(), &|z| planes[z * by * bx + c]);
+        }
+    });
+    out
 }
 
 /// The voxel range of cell `i` of `edge` voxels along an axis of `n` voxels, one voxel wider
@@ -147,30 +183,22 @@ pub fn half_level_reach(i: usize, n: usize, edge: usize) -> (std::ops::Range<usi
 }
 
 impl Occupancy {
-    fn build(voxels: [usize; 3], edge: usize, cell: impl Fn([usize; 3]) -> bool + Sync) -> Occupancy {
-        let (cells, flags) = per_cell(voxels, edge, cell);
-        Occupancy {
-            flags,
-            cells,
-            voxels,
-            edge,
-        }
-    }
-
     /// The cells of [`CELL`] voxels where η changes: a texel of the gradient volume
     /// (`gradient.rs`) within a voxel of the cell changes η ([`super::gradient::bends`]).
     pub fn refracting(texels: &[[half::f16; 4]], dims: [usize; 3]) -> Occupancy {
-        let [nx, ny, nz] = dims;
-        let reach = |i: usize, n: usize| reach(i, n, CELL);
-        Self::build(dims, CELL, |[cx, cy, cz]| {
-            let xs = reach(cx, nx);
-            reach(cz, nz).any(|z| {
-                reach(cy, ny).any(|y| {
-                    let row = (z * ny + y) * nx;
-                    texels[row + xs.start..row + xs.end].iter().any(super::gradient::bends)
-                })
-            })
-        })
+        Self::refracting_where(&super::gradient::bend_map(texels), dims)
+    }
+
+    /// [`Occupancy::refracting`] from where each texel bends ([`super::gradient::bend_map`]).
+    pub fn refracting_where(bends: &[bool], dims: [usize; 3]) -> Occupancy {
+        let cells = dims.map(|d| d.div_ceil(CELL).max(1));
+        let spans = [0, 1, 2].map(|a| (0..cells[a]).map(|i| reach(i, dims[a], CELL)).collect::<Vec<_>>());
+        Occupancy {
+            flags: over_boxes(bends, dims, &spans, false, |&b| b, |a, b| a || b),
+            cells,
+            voxels: dims,
+            edge: CELL,
+        }
     }
 
     fn at(&self, c: [usize; 3]) -> bool {
@@ -452,6 +480,48 @@ mod tests {
 
     /// Growing is a box of (2d+1) cells per axis about every occupied cell: against a brute
     /// force over a scattered grid, margins of 0 to several cells, different per axis.
+    #[test]
+    fn reducing_along_each_axis_in_turn_gives_each_boxs_own_reduction() {
+        // Boxes that overlap, that are empty, that hold one voxel and that span an axis.
+        let dims = [11usize, 7, 5];
+        let spans = [
+            vec![0..3, 2..6, 5..5, 4..11, 10..11],
+            vec![0..7, 1..2, 3..3, 2..5],
+            vec![0..2, 1..5, 4..5],
+        ];
+        let n: usize = dims.iter().product();
+        // A hash of the index: values in no order along any axis.
+        let values: Vec<u16> = (0..n)
+            .map(|i| ((i as u32).wrapping_mul(2_654_435_761) >> 16) as u16)
+            .collect();
+        let got = over_boxes(
+            &values,
+            dims,
+            &spans,
+            [u16::MAX, 0],
+            |&v| [v, v],
+            |a, b| [a[0].min(b[0]), a[1].max(b[1])],
+        );
+        let mut want = Vec::new();
+        for zs in &spans[2] {
+            for ys in &spans[1] {
+                for xs in &spans[0] {
+                    let mut r = [u16::MAX, 0];
+                    for z in zs.clone() {
+                        for y in ys.clone() {
+                            for x in xs.clone() {
+                                let v = values[(z * dims[1] + y) * dims[0] + x];
+                                r = [r[0].min(v), r[1].max(v)];
+                            }
+                        }
+                    }
+                    want.push(r);
+                }
+            }
+        }
+        assert_eq!(got, want);
+    }
+
     #[test]
     fn growing_matches_a_box_about_every_occupied_cell() {
         let cells = [7, 5, 6];

@@ -357,8 +357,9 @@ impl Refracting {
                 flags: vec![0; bricks.iter().product()],
                 dims: bricks.map(|n| n as u32),
             };
-            super::bricks::add_refracting(&mut bends, dims, texels, g_dims);
-            (bends.flags, Occupancy::refracting(texels, g_dims))
+            let map = super::gradient::bend_map(texels);
+            super::bricks::add_refracting_where(&mut bends, dims, &map, g_dims);
+            (bends.flags, Occupancy::refracting_where(&map, g_dims))
         };
         let half = half_of(&texels, g_dims, coarse);
         Refracting {
