@@ -438,23 +438,51 @@ impl SceneTextures {
         let vol_dims = volume.dims;
         let vol_extent = vol_dims.map(|n| n as u32);
         let samples = volume.normalized_u16(window);
-        let brick_ranges = ValueRanges::new(&samples, vol_dims, super::bricks::BRICK);
-        let cell_ranges = ValueRanges::new(&samples, vol_dims, super::occupancy::CELL);
+        let brick_cells = vol_dims.map(|d| d.div_ceil(super::bricks::BRICK).max(1));
+        // The value ranges, the gradient volume and the orientation volume (each with its
+        // half level) are made side by side: each is parallel within, but not everywhere
+        // (allocating, a last slice, the reductions' later axes), and one fills the other's
+        // gaps.
+        let ranges = || {
+            let brick_ranges = ValueRanges::new(&samples, vol_dims, super::bricks::BRICK);
+            let cell_ranges = ValueRanges::new(&samples, vol_dims, super::occupancy::CELL);
+            let samples_half = half_of(&samples, vol_dims, coarse);
+            let half_ranges = samples_half.as_ref().map(|_| {
+                Box::new(Untouched {
+                    brick_ranges: ValueRanges::half_level(&samples, vol_dims, super::bricks::BRICK),
+                    cell_ranges: ValueRanges::half_level(&samples, vol_dims, super::occupancy::CELL),
+                    refracting: None,
+                    half: None,
+                })
+            });
+            (brick_ranges, cell_ranges, samples_half, half_ranges)
+        };
+        let gradient =
+            || refraction.map(|source| Refracting::new(&samples, vol_dims, brick_cells, source, &tf.eta, coarse));
+        // The layers' reach: the index interfaces' half-width, the same in world units along
+        // every axis, so that a profile that curves within it tilts the normal no more than
+        // it shortens it. Without room on the device, one texel: the view samples instead.
+        let layers = || {
+            let (extent, texels) = if orientation {
+                let reach = super::state::interface_half_width(volume.spacing);
+                (
+                    vol_extent,
+                    super::layers::orientation_volume(&samples, volume.dims, volume.spacing, reach),
+                )
+            } else {
+                ([1, 1, 1], vec![[0i16; 4]])
+            };
+            let half = half_of(&texels, extent.map(|n| n as usize), coarse);
+            (extent, texels, half)
+        };
+        let table_texels = || TableTexels::new(tf, sample_distance);
+        let ((ranges, gradient), ((orientation_extent, orientation_texels, orientation_half), table_texels)) =
+            rayon::join(|| rayon::join(ranges, gradient), || rayon::join(layers, table_texels));
+        let (brick_ranges, cell_ranges, samples_half, mut half_ranges) = ranges;
         let mut refracting = None;
-        let samples_half = half_of(&samples, vol_dims, coarse);
-        let mut half_ranges = samples_half.as_ref().map(|_| {
-            Box::new(Untouched {
-                brick_ranges: ValueRanges::half_level(&samples, vol_dims, super::bricks::BRICK),
-                cell_ranges: ValueRanges::half_level(&samples, vol_dims, super::occupancy::CELL),
-                refracting: None,
-                half: None,
-            })
-        });
-
         let mut gradient_half = None;
-        let (gradient_extent, gradient_texels) = match refraction {
-            Some(source) => {
-                let g = Refracting::new(&samples, volume.dims, brick_ranges.cells(), source, &tf.eta, coarse);
+        let (gradient_extent, gradient_texels) = match gradient {
+            Some(g) => {
                 refracting = Some(g.bending);
                 if let (Some(h), Some(bending)) = (half_ranges.as_mut(), g.half_bending) {
                     h.refracting = Some(bending);
@@ -465,18 +493,6 @@ impl SceneTextures {
             None => ([1, 1, 1], vec![[half::f16::ZERO; 4]]),
         };
 
-        // The layers' reach: the index interfaces' half-width, the same in world units along
-        // every axis, so that a profile that curves within it tilts the normal no more than
-        // it shortens it. Without room on the device, one texel: the view samples instead.
-        let (orientation_extent, orientation_texels) = if orientation {
-            let reach = super::state::interface_half_width(volume.spacing);
-            (
-                vol_extent,
-                super::layers::orientation_volume(&samples, volume.dims, volume.spacing, reach),
-            )
-        } else {
-            ([1, 1, 1], vec![[0i16; 4]])
-        };
         // Each volume's texels go to the staging buffer as they are, once all are made.
         let mut made_half = [false; 3];
         made_half[0] = staged.volume(ctx, "volume", Format::R16_UNORM, vol_extent, samples, samples_half)?;
@@ -488,7 +504,6 @@ impl SceneTextures {
             gradient_texels,
             gradient_half,
         )?;
-        let orientation_half = half_of(&orientation_texels, orientation_extent.map(|n| n as usize), coarse);
         made_half[2] = staged.volume(
             ctx,
             "orientation volume",
@@ -498,7 +513,6 @@ impl SceneTextures {
             orientation_half,
         )?;
 
-        let table_texels = TableTexels::new(tf, sample_distance);
         for (img, offset) in tables(ctx, &table_texels, &mut staged.staging)? {
             staged
                 .uploads
