@@ -156,7 +156,16 @@ struct Precompiler {
     started: Option<Instant>,
     looked_at: usize,
     pipelines: usize,
+    /// The variants that may still be compiled ahead in this session; `None`: no bound.
+    budget: Option<usize>,
 }
+
+/// The variants compiled ahead in a session on a CPU driver, about two settled views' worth
+/// of new ones. On lavapipe each adds 25–36 MB of host memory that destroying its pipelines
+/// does not give back (LLVM's code and caches), so without a bound a session that clicks
+/// through many combinations of the switches would gather gigabytes; these take at most
+/// about 0.9 GB. A GPU driver's pipelines take far less: no bound there.
+const CPU_PRECOMPILE_BUDGET: usize = 24;
 
 struct CompileThreads {
     jobs: Option<Sender<Precompile>>,
@@ -215,6 +224,14 @@ impl Drop for CompileThreads {
 }
 
 impl Precompiler {
+    /// One that compiles at most `budget` variants ahead (`None`: any number).
+    fn with_budget(budget: Option<usize>) -> Precompiler {
+        Precompiler {
+            budget,
+            ..Precompiler::default()
+        }
+    }
+
     /// Starts over with the variants one click away from `frames` (the settled view's
     /// requests, the level a click's first frame renders at first).
     fn start(&mut self, frames: &[(&Scene, u32, u32)]) {
@@ -269,6 +286,10 @@ impl Precompiler {
             if !idle {
                 break;
             }
+            if self.budget == Some(0) {
+                self.variants.clear();
+                break;
+            }
             let Some(v) = self.variants.pop_front() else {
                 break;
             };
@@ -283,7 +304,19 @@ impl Precompiler {
                 Ok(Some(job)) => {
                     let threads = self.threads.get_or_insert_with(CompileThreads::start);
                     match threads.jobs.as_ref().map(|jobs| jobs.send(job)) {
-                        Some(Ok(())) if !threads.handles.is_empty() => self.in_flight += 1,
+                        Some(Ok(())) if !threads.handles.is_empty() => {
+                            self.in_flight += 1;
+                            if let Some(b) = self.budget.as_mut() {
+                                *b -= 1;
+                                if *b == 0 {
+                                    log::info!(
+                                        "the panel's variants are compiled ahead no more in this session (each \
+                                         holds about 30 MB of host memory on a CPU driver): a switch to another \
+                                         compiles it in its first frame"
+                                    );
+                                }
+                            }
+                        }
                         _ => {
                             self.variants.clear();
                             break;
@@ -359,7 +392,7 @@ fn run(
     // beside it, and its accumulation passes wait for them: a click is worth more than the
     // passes it delays, and its frames then compile nothing (0.7–1 s per variant on a CPU
     // driver).
-    let mut precompiler = Precompiler::default();
+    let mut precompiler = Precompiler::with_budget(renderer.context().is_cpu().then_some(CPU_PRECOMPILE_BUDGET));
     // The newest interactive frame's request, for the variants' first frames.
     let mut interactive: Option<(u64, Scene, u32, u32)> = None;
     // An accumulation pass waiting for the variants.
@@ -758,6 +791,56 @@ mod tests {
         two.quality.light_filter = !two.quality.light_filter;
         assert!(compiled(&worker, frame(job(version, FULL, 0), &two, (40, 30), false, &progress)) > 0);
         worker.stop();
+        assert_eq!(ctx.validation_errors(), 0, "{:?}", ctx.validation_messages());
+    }
+
+    #[test]
+    fn no_more_variants_are_compiled_ahead_than_the_budget() {
+        let ctx = Context::new(&ContextDesc::from_env(DeviceSelector::Auto)).expect("Vulkan device");
+        let scene = small_scene();
+        let mut prepared = PreparedScene::load(&scene).unwrap();
+        let mut renderer = Renderer::new(ctx.clone()).unwrap();
+        let size = (20, 15);
+        // Whether a variant's pipelines are all built.
+        let built = |renderer: &mut Renderer, prepared: &mut PreparedScene, variant: &Scene| {
+            let kept = std::mem::replace(&mut prepared.scene, variant.clone());
+            let job = renderer.precompile(prepared, &frame_request(&prepared.scene, size.0, size.1, 0));
+            prepared.scene = kept;
+            job.unwrap().is_none()
+        };
+        let variants = one_click_variants(&scene);
+        assert!(variants.len() > 2);
+        assert!(variants.iter().all(|v| !built(&mut renderer, &mut prepared, v)));
+        let mut precompiler = Precompiler::with_budget(Some(2));
+        let settle = |precompiler: &mut Precompiler, renderer: &mut Renderer, prepared: &mut PreparedScene| {
+            precompiler.start(&[(&scene, size.0, size.1)]);
+            let mut replies = Vec::new();
+            let deadline = Instant::now() + Duration::from_secs(300);
+            loop {
+                replies.extend(precompiler.poll(renderer, prepared));
+                if !precompiler.busy() || Instant::now() > deadline {
+                    break;
+                }
+                std::thread::sleep(COMPILE_POLL);
+            }
+            assert!(!precompiler.busy(), "still compiling after 300 s");
+            replies
+        };
+        let replies = settle(&mut precompiler, &mut renderer, &mut prepared);
+        assert!(matches!(replies[..], [Reply::Precompiled { variants: 2, .. }]));
+        // The two most likely variants are built, the others are left to their first frames.
+        let now_built: Vec<bool> = variants
+            .iter()
+            .map(|v| built(&mut renderer, &mut prepared, v))
+            .collect();
+        assert!(
+            now_built[..2].iter().all(|&b| b) && !now_built[2..].iter().any(|&b| b),
+            "{now_built:?}"
+        );
+        // Settling again compiles nothing more: the budget is spent.
+        assert!(settle(&mut precompiler, &mut renderer, &mut prepared).is_empty());
+        assert!(variants[2..].iter().all(|v| !built(&mut renderer, &mut prepared, v)));
+        drop(precompiler);
         assert_eq!(ctx.validation_errors(), 0, "{:?}", ctx.validation_messages());
     }
 
