@@ -60,14 +60,10 @@ pub fn visible_bricks(ranges: &ValueRanges, tf: &TransferFunctions) -> Bricks {
 
 /// Marks the bricks where η changes as well (for refracting scenes): a texel of the gradient
 /// volume (`gradient.rs`, ∇η in xyz, `gradient_dims` voxels over the same box, which may
-/// differ from the volume's) within a voxel of the brick has a gradient other than zero. A
-/// view ray that has not been bent yet skips only bricks where neither happens.
-pub fn add_refracting(bricks: &mut Bricks, dims: [usize; 3], texels: &[[half::f16; 4]], gradient_dims: [usize; 3]) {
-    add_refracting_where(bricks, dims, &super::gradient::bend_map(texels), gradient_dims);
-}
-
-/// [`add_refracting`] from where each texel bends ([`super::gradient::bend_map`]).
-pub fn add_refracting_where(bricks: &mut Bricks, dims: [usize; 3], bends: &[bool], gradient_dims: [usize; 3]) {
+/// differ from the volume's) within a voxel of the brick has a gradient other than zero, as
+/// `bends` says of each ([`super::gradient::bend_map`]). A view ray that has not been bent
+/// yet skips only bricks where neither happens.
+pub fn add_refracting(bricks: &mut Bricks, dims: [usize; 3], bends: &[bool], gradient_dims: [usize; 3]) {
     let nb = bricks.dims.map(|n| n as usize);
     // The gradient voxels over brick i along an axis, one voxel wider on each side.
     let range = |i: usize, a: usize| {
@@ -88,6 +84,7 @@ pub fn add_refracting_where(bricks: &mut Bricks, dims: [usize; 3], bends: &[bool
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::render::gradient::bend_map;
     use crate::transfer::{ColorRamp, Curve};
 
     /// The bricks of a volume of `dims` voxels with 16-bit samples.
@@ -143,7 +140,7 @@ mod tests {
         texels[(12 * 24 + 12) * 24 + 12][1] = half::f16::from_f32(-0.2);
         // η itself (w) away from the change does not count.
         texels[0][3] = half::f16::from_f32(0.4);
-        add_refracting(&mut b, dims, &texels, dims);
+        add_refracting(&mut b, dims, &bend_map(&texels), dims);
         assert_eq!(b.flags.iter().sum::<u32>(), 1);
         assert_eq!(b.flags[(3 + 1) * 3 + 1], 1);
         // A gradient volume of twice the resolution over the same box: its voxel 31 (the
@@ -153,11 +150,11 @@ mod tests {
         let mut texels = vec![[half::f16::ZERO; 4]; 48 * 48 * 48];
         texels[(24 * 48 + 24) * 48 + 24][0] = half::f16::from_f32(0.1);
         let mut b = bricks(&vec![0u16; 24 * 24 * 24], dims, &clear);
-        add_refracting(&mut b, dims, &texels, fine);
+        add_refracting(&mut b, dims, &bend_map(&texels), fine);
         assert_eq!(b.flags.iter().sum::<u32>(), 1);
         texels[(31 * 48 + 31) * 48 + 31][0] = half::f16::from_f32(0.1);
         let mut b = bricks(&vec![0u16; 24 * 24 * 24], dims, &clear);
-        add_refracting(&mut b, dims, &texels, fine);
+        add_refracting(&mut b, dims, &bend_map(&texels), fine);
         assert_eq!(b.flags.iter().sum::<u32>(), 8);
         assert_eq!(b.flags[(2 * 3 + 2) * 3 + 2], 1);
     }

@@ -59,9 +59,11 @@ impl ValueRanges {
         edge: usize,
         reach: impl Fn(usize, usize) -> (std::ops::Range<usize>, bool) + Sync,
     ) -> ValueRanges {
-        let cells = dims.map(|d| d.div_ceil(edge).max(1));
-        let spans = [0, 1, 2].map(|a| (0..cells[a]).map(|i| reach(i, dims[a]).0).collect::<Vec<_>>());
-        let border = [0, 1, 2].map(|a| (0..cells[a]).map(|i| reach(i, dims[a]).1).collect::<Vec<_>>());
+        let cells = cells_of(dims, edge);
+        let reached = [0, 1, 2].map(|a| (0..cells[a]).map(|i| reach(i, dims[a])).collect::<Vec<_>>());
+        let spans = reached
+            .each_ref()
+            .map(|r| r.iter().map(|(span, _)| span.clone()).collect());
         let mut ranges = over_boxes(
             samples,
             dims,
@@ -72,7 +74,7 @@ impl ValueRanges {
         );
         for (c, range) in ranges.iter_mut().enumerate() {
             let [cx, cy, cz] = [c % cells[0], (c / cells[0]) % cells[1], c / (cells[0] * cells[1])];
-            if border[0][cx] || border[1][cy] || border[2][cz] {
+            if reached[0][cx].1 || reached[1][cy].1 || reached[2][cz].1 {
                 range[0] = 0;
             }
         }
@@ -104,12 +106,18 @@ impl ValueRanges {
     }
 }
 
+/// The cells of `edge` voxels along each axis of `voxels` (at least one).
+pub(crate) fn cells_of(voxels: [usize; 3], edge: usize) -> [usize; 3] {
+    voxels.map(|d| d.div_ceil(edge).max(1))
+}
+
 /// Per box (x fastest) of `spans[0][i] × spans[1][j] × spans[2][k]` voxels of a `dims`
 /// volume, `combine` of `leaf` of its voxels (`empty` where it has none): reduced along x,
 /// then y, then z, so that each voxel is read once per box along x that holds it rather than
 /// once per box (the boxes overlap by a voxel or more on each side). For an associative and
-/// commutative `combine` (min, max, or) the same values as reducing each box at once: the
-/// CT head's value ranges in about a fifth of the time.
+/// commutative `combine` (min, max, or) the same values as reducing each box at once: on the
+/// CT head the cells' value ranges in 12–15 ms instead of 16.5, the half level's in 16–19
+/// instead of 30.5 (where the boxes overlap most).
 pub(crate) fn over_boxes<V: Sync, T: Copy + Send + Sync>(
     values: &[V],
     dims: [usize; 3],
@@ -184,14 +192,10 @@ pub fn half_level_reach(i: usize, n: usize, edge: usize) -> (std::ops::Range<usi
 
 impl Occupancy {
     /// The cells of [`CELL`] voxels where η changes: a texel of the gradient volume
-    /// (`gradient.rs`) within a voxel of the cell changes η ([`super::gradient::bends`]).
-    pub fn refracting(texels: &[[half::f16; 4]], dims: [usize; 3]) -> Occupancy {
-        Self::refracting_where(&super::gradient::bend_map(texels), dims)
-    }
-
-    /// [`Occupancy::refracting`] from where each texel bends ([`super::gradient::bend_map`]).
-    pub fn refracting_where(bends: &[bool], dims: [usize; 3]) -> Occupancy {
-        let cells = dims.map(|d| d.div_ceil(CELL).max(1));
+    /// (`gradient.rs`) within a voxel of the cell changes η, as `bends` says of each
+    /// ([`super::gradient::bend_map`]).
+    pub fn refracting(bends: &[bool], dims: [usize; 3]) -> Occupancy {
+        let cells = cells_of(dims, CELL);
         let spans = [0, 1, 2].map(|a| (0..cells[a]).map(|i| reach(i, dims[a], CELL)).collect::<Vec<_>>());
         Occupancy {
             flags: over_boxes(bends, dims, &spans, false, |&b| b, |a, b| a || b),
@@ -478,8 +482,6 @@ mod tests {
         }
     }
 
-    /// Growing is a box of (2d+1) cells per axis about every occupied cell: against a brute
-    /// force over a scattered grid, margins of 0 to several cells, different per axis.
     #[test]
     fn reducing_along_each_axis_in_turn_gives_each_boxs_own_reduction() {
         // Boxes that overlap, that are empty, that hold one voxel and that span an axis.
@@ -522,6 +524,8 @@ mod tests {
         assert_eq!(got, want);
     }
 
+    /// Growing is a box of (2d+1) cells per axis about every occupied cell: against a brute
+    /// force over a scattered grid, margins of 0 to several cells, different per axis.
     #[test]
     fn growing_matches_a_box_about_every_occupied_cell() {
         let cells = [7, 5, 6];
@@ -669,7 +673,7 @@ mod tests {
         texels[(8 * 16 + 9) * 16 + 9][0] = half::f16::from_f32(0.1);
         // η itself (w) does not count, only its change.
         texels[0][3] = half::f16::from_f32(0.5);
-        let r = Occupancy::refracting(&texels, dims);
+        let r = Occupancy::refracting(&super::super::gradient::bend_map(&texels), dims);
         assert_eq!(r.flags.iter().filter(|f| **f).count(), 2);
         assert!(r.at([2, 2, 2]) && r.at([2, 2, 1]));
     }

@@ -358,8 +358,8 @@ impl Refracting {
                 dims: bricks.map(|n| n as u32),
             };
             let map = super::gradient::bend_map(texels);
-            super::bricks::add_refracting_where(&mut bends, dims, &map, g_dims);
-            (bends.flags, Occupancy::refracting_where(&map, g_dims))
+            super::bricks::add_refracting(&mut bends, dims, &map, g_dims);
+            (bends.flags, Occupancy::refracting(&map, g_dims))
         };
         let half = half_of(&texels, g_dims, coarse);
         Refracting {
@@ -438,7 +438,7 @@ impl SceneTextures {
         let vol_dims = volume.dims;
         let vol_extent = vol_dims.map(|n| n as u32);
         let samples = volume.normalized_u16(window);
-        let brick_cells = vol_dims.map(|d| d.div_ceil(super::bricks::BRICK).max(1));
+        let brick_cells = super::occupancy::cells_of(vol_dims, super::bricks::BRICK);
         // The value ranges, the gradient volume and the orientation volume (each with its
         // half level) are made side by side: each is parallel within, but not everywhere
         // (allocating, a last slice, the reductions' later axes), and one fills the other's
