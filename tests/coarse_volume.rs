@@ -148,7 +148,8 @@ fn renders_at_either_level_share_the_kept_textures() {
     let mut gpu = Gpu::new();
     let mut keep = req.clone();
     keep.keep_coarse_volume = true;
-    // The viewer's order: a coarse level, the full level, the coarse level again.
+    // The viewer's order: a coarse level, the full level, the coarse level again. The first
+    // frame makes both levels, and each render after it finds them kept.
     let mut p = scene(striped_ball(), 2.0, 1);
     let first = gpu.render(&p, &keep);
     assert!(first.stats.upload_bytes > 0);
@@ -158,6 +159,40 @@ fn renders_at_either_level_share_the_kept_textures() {
         assert_eq!(out.stats.upload_bytes, 0, "{name}: the kept textures serve");
         assert_eq!(out.image.pixels, fresh(&p), "{name}: the image of a fresh upload");
     }
+    // Another data window while the coarse level renders (a drag of the viewer's window
+    // slider): the volumes are made anew at the half level alone. The full level holds back
+    // the volume's 16-bit samples and the orientation volume's four 16-bit channels per voxel
+    // (nothing refracts here: no gradient volume at either level), a placeholder texel in a
+    // staging slot of 16 bytes in place of each.
+    let dims = p.volume.dims;
+    let voxels = (dims[0] * dims[1] * dims[2]) as u64;
+    p.scene.window = Some([0.0, 0.6]);
+    let windowed = gpu.render(&p, &keep);
+    assert_eq!(
+        windowed.stats.upload_bytes + voxels * (2 + 8),
+        first.stats.upload_bytes + 2 * 16,
+        "a new data window makes the half level alone"
+    );
+    assert_ne!(
+        windowed.image.pixels, first.image.pixels,
+        "the window changes the image"
+    );
+    assert_eq!(
+        windowed.image.pixels,
+        fresh(&p),
+        "another window: the image of a fresh upload"
+    );
+    // The first render that reads the full level makes both, whose half level is the same to
+    // the bit; the coarse level then finds them kept.
+    p.scene.quality.volume_level = 0;
+    let full = gpu.render(&p, &keep);
+    assert_eq!(full.stats.upload_bytes, first.stats.upload_bytes, "both levels made");
+    assert_eq!(full.image.pixels, fresh(&p), "another window, full level");
+    p.scene.quality.volume_level = 1;
+    let again = gpu.render(&p, &keep);
+    assert_eq!(again.stats.upload_bytes, 0, "half level: the kept textures serve");
+    assert_eq!(again.image.pixels, windowed.image.pixels, "the half level made alone");
+
     // Textures made without the half level are made again for a render that reads it.
     let mut gpu = Gpu::new();
     p.scene.quality.volume_level = 0;

@@ -116,8 +116,11 @@ fn a_transfer_function_edit_keeps_the_volume_images_unless_eta_changes() {
     // switching it on again copies nothing either, unless η changed in between.
     // Then without the objects' η volume, η taken from the volume itself as from a CT, with
     // the textures laying the volume's axes out for a side view.
-    for level in [0, 1] {
-        transfer_edits(prepared(), 0.0, None, level);
+    // At level 1 also as the viewer asks, keeping the half level on every render: its first
+    // frame makes both levels, and an η edit then makes the gradient volume's half level
+    // alone, as a render without the full level does.
+    for (level, keep) in [(0, false), (1, false), (1, true)] {
+        transfer_edits(prepared(), 0.0, None, level, keep);
     }
     // A quarter of the volume along x is cleared to air, so that laying its axes out the
     // other way round (x for z) gives another gradient volume: the ball lens alone is the
@@ -133,18 +136,20 @@ fn a_transfer_function_edit_keeps_the_volume_images_unless_eta_changes() {
             }
         }
         own_eta.volume = Arc::new(volume);
-        transfer_edits(own_eta, 90.0, Some([2, 1, 0]), level);
+        transfer_edits(own_eta, 90.0, Some([2, 1, 0]), level, false);
     }
 }
 
 /// The edits on `p` seen from `yaw_deg`, for which the textures lay the volume's axes out as
-/// `axes` (`RenderStats::volume_axes`), with `quality.volume_level` at `level`.
-fn transfer_edits(mut p: PreparedScene, yaw_deg: f32, axes: Option<[u8; 3]>, level: u32) {
+/// `axes` (`RenderStats::volume_axes`), with `quality.volume_level` at `level`, keeping the
+/// half level where asked (`RenderRequest::keep_coarse_volume`).
+fn transfer_edits(mut p: PreparedScene, yaw_deg: f32, axes: Option<[u8; 3]>, level: u32, keep: bool) {
     let table_bytes = 2 * (TABLE_SIZE * TABLE_SIZE * 8) as u64;
     let mut gpu = Gpu::new();
     // As the viewer asks: the staging buffer is written again by the next upload of volumes.
     let req = RenderRequest {
         keep_staging: true,
+        keep_coarse_volume: keep,
         ..RenderRequest::new(48, 40)
     };
     p.scene.camera.yaw_deg = yaw_deg;
@@ -160,10 +165,16 @@ fn transfer_edits(mut p: PreparedScene, yaw_deg: f32, axes: Option<[u8; 3]>, lev
     let full = first.upload_bytes;
     assert_eq!(first.volume_axes, axes);
     // The gradient volume has the η volume's dims (the volume's), its half level half of them.
+    // A render that reads the half level makes it alone, one texel holding the full level's
+    // place (in a staging slot of 16 bytes).
     let texels = |d: [usize; 3]| (d[0] * d[1] * d[2]) as u64;
     let dims = p.volume.dims;
     let half_dims = caustica::volume::half_level_dims(dims);
-    let gradient_bytes = 8 * (texels(dims) + if level > 0 { texels(half_dims) } else { 0 });
+    let gradient_bytes = if level > 0 {
+        16 + 8 * texels(half_dims)
+    } else {
+        8 * texels(dims)
+    };
     assert!(
         full > table_bytes + 32 * 32 * 32 * 2,
         "a new scene copies its volumes: {full} bytes"
@@ -258,6 +269,22 @@ fn transfer_edits(mut p: PreparedScene, yaw_deg: f32, axes: Option<[u8; 3]>, lev
             out.stats.upload_bytes, expected,
             "level {level}, {name}: bytes copied in"
         );
+    }
+    if keep {
+        // The η edits left the full level behind: the first render that reads it makes the
+        // volumes anew.
+        p.scene.quality.volume_level = 0;
+        let out = gpu.render(&p, &req);
+        assert!(
+            out.image.pixels == Gpu::new().render(&p, &req).image.pixels,
+            "full level after the edits"
+        );
+        assert!(
+            out.stats.upload_bytes > full / 2,
+            "made anew: {} bytes",
+            out.stats.upload_bytes
+        );
+        p.scene.quality.volume_level = level;
     }
     gpu.assert_clean();
     if level == 0 {

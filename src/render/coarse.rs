@@ -5,7 +5,10 @@
 //! the fetches of neighbouring pixels and planes close.
 //!
 //! The level is an image of its own beside each volume image (a mip level's extent: ⌊n/2⌋ per
-//! axis, at least 1), bound in its place, so the passes read it unchanged.
+//! axis, at least 1), bound in its place, so the passes read it unchanged. The volume's half
+//! level is the box filter of its values; the gradient and orientation volumes' half levels are
+//! made from those values at the half level's resolution (their differences scaled to the
+//! volume's voxels), so that they need neither the full levels nor the time to make them.
 
 use half::slice::HalfFloatSliceExt;
 

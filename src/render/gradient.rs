@@ -23,6 +23,20 @@ pub fn ambient_eta(eta: &Curve) -> f32 {
 /// volume, as rgba16f texels. Voxels beyond the volume count as the outside value 0, so the
 /// volume's faces are interfaces when η inside differs from η outside.
 pub fn gradient_volume(samples: &[u16], dims: [usize; 3], eta: &Curve, scheme: Gradient) -> Vec<[half::f16; 4]> {
+    gradient_volume_per(samples, dims, eta, scheme, [1.0; 3])
+}
+
+/// [`gradient_volume`] of texels that span `texel_voxels` of the volume's voxels along each
+/// axis (the half-resolution level's: `n / ⌊n/2⌋`), with its differences divided by them, so
+/// that they scale as the volume's per-voxel differences do, as the passes read them at
+/// either level.
+pub fn gradient_volume_per(
+    samples: &[u16],
+    dims: [usize; 3],
+    eta: &Curve,
+    scheme: Gradient,
+    texel_voxels: [f32; 3],
+) -> Vec<[half::f16; 4]> {
     let table: Vec<f32> = (0..ETA_TABLE)
         .map(|i| eta.eval(i as f32 / (ETA_TABLE - 1) as f32))
         .collect();
@@ -47,7 +61,8 @@ pub fn gradient_volume(samples: &[u16], dims: [usize; 3], eta: &Curve, scheme: G
             etas[(z as usize * ny + y as usize) * nx + x as usize]
         }
     };
-    let texel = |d: [f32; 3], c: f32| [d[0], d[1], d[2], c - ambient];
+    let per = texel_voxels.map(|v| 1.0 / v);
+    let texel = |d: [f32; 3], c: f32| [d[0] * per[0], d[1] * per[1], d[2] * per[2], c - ambient];
     // How far the scheme reaches: voxels at least this far from every face read no outside
     // value, and take their neighbours at fixed offsets without the bounds tests (the same
     // values and operations: the same texels; this took the CT head's gradient volume from

@@ -18,6 +18,19 @@ use rayon::prelude::*;
 /// there: renders over jittered planes of a thin side-lit sheet then varied by 2 % from row to
 /// row where 16-bit ones leave 1 % (`tests/steps.rs`).
 pub fn orientation_volume(samples: &[u16], dims: [usize; 3], spacing: [f32; 3], reach: f32) -> Vec<[i16; 4]> {
+    orientation_volume_per(samples, dims, spacing, reach, [1.0; 3])
+}
+
+/// [`orientation_volume`] of texels `spacing` apart that span `texel_voxels` of the volume's
+/// voxels along each axis (the half-resolution level's: `n / ⌊n/2⌋`), with its differences
+/// divided by them, so that they scale as the volume's per-voxel differences do.
+pub fn orientation_volume_per(
+    samples: &[u16],
+    dims: [usize; 3],
+    spacing: [f32; 3],
+    reach: f32,
+    texel_voxels: [f32; 3],
+) -> Vec<[i16; 4]> {
     let [nx, ny, nz] = dims;
     assert_eq!(samples.len(), nx * ny * nz, "samples of a {nx}×{ny}×{nz} volume");
     // (voxels to the first neighbour, weight of the one after it, reach in voxels) along each
@@ -29,7 +42,8 @@ pub fn orientation_volume(samples: &[u16], dims: [usize; 3], spacing: [f32; 3], 
     };
     let [(kx, fx, rx), (ky, fy, ry), (kz, fz, rz)] = [axis(0), axis(1), axis(2)];
     let scale = ORIENTATION_SCALE / 65535.0;
-    let (sx, sy, sz) = (scale / rx, scale / ry, scale / rz);
+    let [vx, vy, vz] = texel_voxels;
+    let (sx, sy, sz) = (scale / (rx * vx), scale / (ry * vy), scale / (rz * vz));
     let texel = |d: f32, s: f32| crate::volume::round_half_away(d * s).clamp(-32767.0, 32767.0) as i16;
     // Rows of x, whole: a row beyond the volume reads as the border's zeros.
     let zeros = vec![0u16; nx];

@@ -21,7 +21,7 @@ use crate::gpu::{
 
 use super::light_tiles::{self, NEVER};
 use super::shaders::Pass;
-use super::upload::{CachedTextures, SceneTextures, TexturesKey};
+use super::upload::{CachedTextures, Resolutions, SceneTextures, TexturesKey};
 use super::{
     background, DebugView, Features, Immediates, Params, PreparedScene, RenderError, RenderOutput, RenderRequest,
     RenderStats, RenderedImage,
@@ -1009,7 +1009,17 @@ pub(super) fn run(
     // Scene textures are kept between renders while what they hold is unchanged (an
     // interactive view changes mostly the camera and light).
     let coarse = scene.quality.volume_level > 0;
-    let mut key = TexturesKey::new(prepared, &features, coarse || req.keep_coarse_volume, view.memory_axes);
+    // A render that reads only the half level makes only it: the viewer's coarse levels
+    // after a change of the data window or of η (on the CT head about a third of the frame's
+    // time); the next level at full resolution makes the full level then. The viewer's
+    // first frame of a volume makes both: its shaders compile beside the upload, which hides
+    // it, where the first level at full resolution would wait for it.
+    let made_before = cache.as_ref().is_some_and(|c| c.of_volume(&prepared.volume));
+    let levels = Resolutions {
+        full: !coarse || (req.keep_coarse_volume && !made_before),
+        half: coarse || req.keep_coarse_volume,
+    };
+    let mut key = TexturesKey::new(prepared, &features, levels, view.memory_axes);
     if req.volume_layout == super::VolumeLayout::Kept {
         if let Some(axes) = cache.as_ref().and_then(|c| c.serves_but_layout(&key)) {
             view.memory_axes = axes;
@@ -1085,7 +1095,7 @@ pub(super) fn run(
                 &prepared.tf,
                 scene.quality.sample_distance,
                 prepared.env.as_ref(),
-                key.coarse(),
+                key.levels(),
                 staging,
                 reuse,
             )?;

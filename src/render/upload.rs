@@ -276,7 +276,7 @@ impl Staged {
     }
 
     /// Creates a sampled 3D image of `extent` texels in `format` and stages `texels` for it;
-    /// with `half` (`half_of`), a second image of its half-resolution level after it.
+    /// with `half` (texels and extent), a second image of its half-resolution level after it.
     /// Whether it made the second. An image of its own rather than a mip level read through a
     /// sampler clamped to it: llvmpipe compiles a variant of each shader per sampler state, and
     /// with two the viewer's preview (the first level at full resolution after the coarse
@@ -288,19 +288,17 @@ impl Staged {
         format: Format,
         extent: [u32; 3],
         texels: Vec<T>,
-        half: Option<Vec<T>>,
+        half: Option<(Vec<T>, [u32; 3])>,
     ) -> Result<bool, GpuError> {
-        let dims = extent.map(|n| n as usize);
         let image = self.image(ctx, ImageDesc::sampled(label, format, extent, true, 1))?;
         self.uploads.push((
             self.images.len(),
             vec![(self.staging.push_owned(Box::new(texels)), extent)],
         ));
         self.images.push(image);
-        let Some(half) = half else {
+        let Some((half, half_extent)) = half else {
             return Ok(false);
         };
-        let half_extent = super::coarse::half_dims(dims).map(|n| n as u32);
         let image = self.image(
             ctx,
             ImageDesc::sampled(&format!("{label} at half resolution"), format, half_extent, true, 1),
@@ -317,7 +315,52 @@ impl Staged {
 /// With `coarse`, the half-resolution level (`coarse.rs`) of `texels` of a `dims` volume; none
 /// for a placeholder texel, which has no finer level to filter.
 fn half_of<T: super::coarse::Channels>(texels: &[T], dims: [usize; 3], coarse: bool) -> Option<Vec<T>> {
-    (coarse && dims.iter().product::<usize>() > 1).then(|| super::coarse::half_level(texels, dims))
+    has_half(dims, coarse).then(|| super::coarse::half_level(texels, dims))
+}
+
+/// Whether a `dims` volume gets a half-resolution level where `coarse` asks for one: not a
+/// placeholder texel, which has no finer level to filter.
+fn has_half(dims: [usize; 3], coarse: bool) -> bool {
+    coarse && dims.iter().product::<usize>() > 1
+}
+
+/// How many of a `dims` volume's voxels a texel of its half-resolution level spans along each
+/// axis (`n / ⌊n/2⌋`: 2, or a little more along an odd side).
+fn half_texel_voxels(dims: [usize; 3]) -> [f32; 3] {
+    let half = super::coarse::half_dims(dims);
+    [0, 1, 2].map(|a| dims[a] as f32 / half[a] as f32)
+}
+
+/// The orientation volume's half level (`layers::orientation_volume`) from `samples_half`, the
+/// half level of a `dims` volume's samples `spacing` apart: over the same `reach`, its
+/// differences scaled to the volume's voxels.
+fn half_orientation(samples_half: &[u16], dims: [usize; 3], spacing: [f32; 3], reach: f32) -> Vec<[i16; 4]> {
+    let voxels = half_texel_voxels(dims);
+    let half_spacing = [0, 1, 2].map(|a| spacing[a] * voxels[a]);
+    let half_dims = super::coarse::half_dims(dims);
+    super::layers::orientation_volume_per(samples_half, half_dims, half_spacing, reach, voxels)
+}
+
+/// The resolution levels of the volumes that textures hold, or that a render asks for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Resolutions {
+    /// The volumes at full resolution (`quality.volume_level` 0).
+    pub full: bool,
+    /// Their half-resolution level (`coarse.rs`; `quality.volume_level` 1).
+    pub half: bool,
+}
+
+impl Resolutions {
+    /// Whether textures with these levels serve a render that asks for `other`'s.
+    fn serve(self, other: Resolutions) -> bool {
+        (self.full || !other.full) && (self.half || !other.half)
+    }
+
+    /// Whether a `dims` volume is made at full resolution: where asked for, and where it has
+    /// no half level to stand in (a placeholder texel).
+    fn makes_full(self, dims: [usize; 3]) -> bool {
+        self.full || !has_half(dims, self.half)
+    }
 }
 
 /// Where the gradient volume's η comes from: a separate η volume with its value range (else
@@ -329,7 +372,8 @@ pub type EtaSource<'a> = (Option<(&'a Volume, [f32; 2])>, Gradient);
 struct Refracting {
     extent: [u32; 3],
     texels: Vec<[f16; 4]>,
-    half: Option<Vec<[f16; 4]>>,
+    /// The half level's texels and extent.
+    half: Option<(Vec<[f16; 4]>, [u32; 3])>,
     /// The bricks where η changes (one word each) and the cells.
     bending: (Vec<u32>, Occupancy),
     half_bending: Option<(Vec<u32>, Occupancy)>,
@@ -337,19 +381,46 @@ struct Refracting {
 
 impl Refracting {
     /// From `source`'s η volume, else from `samples`, the volume's (of `dims` voxels, in
-    /// `bricks` bricks), under `eta`; with `coarse`, the half-resolution level too.
+    /// `bricks` bricks, with `samples_half` its half-resolution level where made), under
+    /// `eta`, at the `levels` asked for. The half level is the gradient of η over the half
+    /// level's values, not the half level of the gradient: the η the half level's values
+    /// classify to, and made without the full level.
+    #[allow(clippy::too_many_arguments)]
     fn new(
         samples: &[u16],
+        samples_half: Option<&[u16]>,
         dims: [usize; 3],
         bricks: [usize; 3],
         source: EtaSource<'_>,
         eta: &Curve,
-        coarse: bool,
+        levels: Resolutions,
     ) -> Self {
         let (eta_source, scheme) = source;
-        let (g_dims, texels) = match eta_source {
-            Some((ev, w)) => (ev.dims, gradient_volume(&ev.normalized_u16(w), ev.dims, eta, scheme)),
-            None => (dims, gradient_volume(samples, dims, eta, scheme)),
+        let own;
+        let (g_dims, values) = match eta_source {
+            Some((ev, w)) => {
+                own = ev.normalized_u16(w);
+                (ev.dims, &own[..])
+            }
+            None => (dims, samples),
+        };
+        let half_dims = super::coarse::half_dims(g_dims);
+        let half = has_half(g_dims, levels.half).then(|| {
+            let own_half;
+            let values_half = match (eta_source, samples_half) {
+                (None, Some(h)) => h,
+                _ => {
+                    own_half = super::coarse::half_level(values, g_dims);
+                    &own_half[..]
+                }
+            };
+            super::gradient::gradient_volume_per(values_half, half_dims, eta, scheme, half_texel_voxels(g_dims))
+        });
+        let full = levels.makes_full(g_dims);
+        let (g_extent, texels) = if full {
+            (g_dims, gradient_volume(values, g_dims, eta, scheme))
+        } else {
+            ([1, 1, 1], vec![[f16::ZERO; 4]])
         };
         // Where η changes, as read from `texels` of `g_dims` voxels.
         let bending = |texels: &[[f16; 4]], g_dims: [usize; 3]| {
@@ -361,11 +432,17 @@ impl Refracting {
             super::bricks::add_refracting(&mut bends, dims, &map, g_dims);
             (bends.flags, Occupancy::refracting(&map, g_dims))
         };
-        let half = half_of(&texels, g_dims, coarse);
+        let half_bending = half.as_ref().map(|h| bending(h, half_dims));
+        let half = half.map(|h| (h, half_dims.map(|n| n as u32)));
+        // Without the full level, no render reads its flags: those of the half level stand in.
+        let bending = match (&half_bending, full) {
+            (Some(h), false) => h.clone(),
+            _ => bending(&texels, g_extent),
+        };
         Refracting {
-            extent: g_dims.map(|n| n as u32),
-            bending: bending(&texels, g_dims),
-            half_bending: half.as_ref().map(|h| bending(h, super::coarse::half_dims(g_dims))),
+            extent: g_extent.map(|n| n as u32),
+            bending,
+            half_bending,
             half,
             texels,
         }
@@ -412,7 +489,9 @@ impl SceneTextures {
     /// Creates the textures and stages their contents; [`SceneTextures::record_upload`]
     /// copies them in. `orientation`: make the orientation volume. `refraction`: the η source
     /// (the η volume with its value range, or the volume itself) for the gradient volume.
-    /// `coarse`: give the volumes their half-resolution level (`quality.volume_level`).
+    /// `levels`: the volumes' resolution levels to make (`quality.volume_level`); where the
+    /// full level is not asked for, its images are placeholder texels, which no render at the
+    /// half level reads.
     /// `kept_staging`: a staging buffer kept from an earlier upload, used again where it is large
     /// enough ([`PendingUpload::staging`] gives this one's); `reuse`: volume images of
     /// textures made before (of the same volume), each taken where it is what a new one would
@@ -427,7 +506,7 @@ impl SceneTextures {
         tf: &TransferFunctions,
         sample_distance: f32,
         env: Option<&EnvMap>,
-        coarse: bool,
+        levels: Resolutions,
         kept_staging: Option<Arc<Buffer>>,
         reuse: Vec<Image>,
     ) -> Result<(Self, PendingUpload), GpuError> {
@@ -438,15 +517,19 @@ impl SceneTextures {
         let vol_dims = volume.dims;
         let vol_extent = vol_dims.map(|n| n as u32);
         let samples = volume.normalized_u16(window);
+        // The half level's values first: the gradient and orientation volumes' half levels are
+        // made from them, not from their own full levels, which a render that reads only the
+        // half level (the viewer's coarse levels) then need not wait for.
+        let samples_half = half_of(&samples, vol_dims, levels.half);
+        let full = levels.makes_full(vol_dims);
+        let half_dims = super::coarse::half_dims(vol_dims);
+        let half_extent = half_dims.map(|n| n as u32);
         let brick_cells = super::occupancy::cells_of(vol_dims, super::bricks::BRICK);
         // The value ranges, the gradient volume and the orientation volume (each with its
         // half level) are made side by side: each is parallel within, but not everywhere
         // (allocating, a last slice, the reductions' later axes), and one fills the other's
         // gaps.
         let ranges = || {
-            let brick_ranges = ValueRanges::new(&samples, vol_dims, super::bricks::BRICK);
-            let cell_ranges = ValueRanges::new(&samples, vol_dims, super::occupancy::CELL);
-            let samples_half = half_of(&samples, vol_dims, coarse);
             let half_ranges = samples_half.as_ref().map(|_| {
                 Box::new(Untouched {
                     brick_ranges: ValueRanges::half_level(&samples, vol_dims, super::bricks::BRICK),
@@ -455,30 +538,45 @@ impl SceneTextures {
                     half: None,
                 })
             });
-            (brick_ranges, cell_ranges, samples_half, half_ranges)
+            // Without the full level, no render reads its ranges: the half level's (on the
+            // same grids) stand in.
+            let (brick_ranges, cell_ranges) = match (&half_ranges, full) {
+                (Some(h), false) => (h.brick_ranges.clone(), h.cell_ranges.clone()),
+                _ => (
+                    ValueRanges::new(&samples, vol_dims, super::bricks::BRICK),
+                    ValueRanges::new(&samples, vol_dims, super::occupancy::CELL),
+                ),
+            };
+            (brick_ranges, cell_ranges, half_ranges)
         };
-        let gradient =
-            || refraction.map(|source| Refracting::new(&samples, vol_dims, brick_cells, source, &tf.eta, coarse));
+        let gradient = || {
+            refraction.map(|source| {
+                let half = samples_half.as_deref();
+                Refracting::new(&samples, half, vol_dims, brick_cells, source, &tf.eta, levels)
+            })
+        };
         // The layers' reach: the index interfaces' half-width, the same in world units along
         // every axis, so that a profile that curves within it tilts the normal no more than
         // it shortens it. Without room on the device, one texel: the view samples instead.
         let layers = || {
-            let (extent, texels) = if orientation {
-                let reach = super::state::interface_half_width(volume.spacing);
-                (
-                    vol_extent,
-                    super::layers::orientation_volume(&samples, volume.dims, volume.spacing, reach),
-                )
+            if !orientation {
+                return ([1, 1, 1], vec![[0i16; 4]], None);
+            }
+            let reach = super::state::interface_half_width(volume.spacing);
+            let half = samples_half
+                .as_ref()
+                .map(|h| (half_orientation(h, vol_dims, volume.spacing, reach), half_extent));
+            if full {
+                let texels = super::layers::orientation_volume(&samples, vol_dims, volume.spacing, reach);
+                (vol_extent, texels, half)
             } else {
-                ([1, 1, 1], vec![[0i16; 4]])
-            };
-            let half = half_of(&texels, extent.map(|n| n as usize), coarse);
-            (extent, texels, half)
+                ([1, 1, 1], vec![[0i16; 4]], half)
+            }
         };
         let table_texels = || TableTexels::new(tf, sample_distance);
         let ((ranges, gradient), ((orientation_extent, orientation_texels, orientation_half), table_texels)) =
             rayon::join(|| rayon::join(ranges, gradient), || rayon::join(layers, table_texels));
-        let (brick_ranges, cell_ranges, samples_half, mut half_ranges) = ranges;
+        let (brick_ranges, cell_ranges, mut half_ranges) = ranges;
         let mut refracting = None;
         let mut gradient_half = None;
         let (gradient_extent, gradient_texels) = match gradient {
@@ -495,7 +593,13 @@ impl SceneTextures {
 
         // Each volume's texels go to the staging buffer as they are, once all are made.
         let mut made_half = [false; 3];
-        made_half[0] = staged.volume(ctx, "volume", Format::R16_UNORM, vol_extent, samples, samples_half)?;
+        let samples_half = samples_half.map(|h| (h, half_extent));
+        made_half[0] = if full {
+            staged.volume(ctx, "volume", Format::R16_UNORM, vol_extent, samples, samples_half)?
+        } else {
+            drop(samples);
+            staged.volume(ctx, "volume", Format::R16_UNORM, [1, 1, 1], vec![0u16], samples_half)?
+        };
         made_half[1] = staged.volume(
             ctx,
             "gradient volume",
@@ -696,20 +800,25 @@ impl SceneTextures {
         refraction: EtaSource<'_>,
         tf: &TransferFunctions,
         sample_distance: f32,
-        coarse: bool,
+        levels: Resolutions,
         kept: Option<Arc<Buffer>>,
     ) -> Result<PendingUpload, GpuError> {
         let samples = match refraction.0 {
             Some(_) => Vec::new(),
             None => volume.normalized_u16(window),
         };
+        let samples_half = match refraction.0 {
+            Some(_) => None,
+            None => half_of(&samples, volume.dims, levels.half),
+        };
         let g = Refracting::new(
             &samples,
+            samples_half.as_deref(),
             volume.dims,
             self.untouched.brick_ranges.cells(),
             refraction,
             &tf.eta,
-            coarse,
+            levels,
         );
         // The old gradient volume's images serve again where they are what new ones would be;
         // a placeholder texel holds the place until the new image is in it.
@@ -853,15 +962,20 @@ pub struct TexturesKey {
     tf: TransferFunctions,
     sample_distance: f32,
     environment: EnvSource,
-    /// The volumes have (or are asked for) their half-resolution level.
-    coarse: bool,
+    /// The volumes' resolution levels the textures have (or a render asks for).
+    levels: Resolutions,
     /// The volume's axes as the textures lay them out (`ViewSetup::memory_axes`).
     axes: [usize; 3],
 }
 
 impl TexturesKey {
-    /// What `prepared` needs; `coarse`: with the volumes' half-resolution level.
-    pub fn new(prepared: &super::PreparedScene, features: &super::Features, coarse: bool, axes: [usize; 3]) -> Self {
+    /// What `prepared` needs, with the volumes' resolution `levels`.
+    pub fn new(
+        prepared: &super::PreparedScene,
+        features: &super::Features,
+        levels: Resolutions,
+        axes: [usize; 3],
+    ) -> Self {
         let gradient = features.refraction.then(|| GradientSource {
             scheme: features.gradient,
             eta: prepared.tf.eta.clone(),
@@ -876,7 +990,7 @@ impl TexturesKey {
             tf: prepared.tf.clone(),
             sample_distance: prepared.scene.quality.sample_distance,
             environment: EnvSource::of(&prepared.scene.environment),
-            coarse,
+            levels,
             axes,
         }
     }
@@ -891,9 +1005,9 @@ impl TexturesKey {
         &self.environment
     }
 
-    /// Whether the volumes are asked for their half-resolution level.
-    pub fn coarse(&self) -> bool {
-        self.coarse
+    /// The volumes' resolution levels asked for.
+    pub fn levels(&self) -> Resolutions {
+        self.levels
     }
 
     fn same(&self, other: &TexturesKey) -> bool {
@@ -913,8 +1027,8 @@ impl TexturesKey {
 
     /// The same but for the transfer functions other than the η a gradient volume read is
     /// made from, the sample distance and whether the render refracts: what
-    /// [`SceneTextures::replace_transfer`] brings up to date. Textures with the
-    /// half-resolution level serve a key without it.
+    /// [`SceneTextures::replace_transfer`] brings up to date. Textures with a resolution
+    /// level serve a key that does not ask for it.
     fn same_but_transfer(&self, other: &TexturesKey) -> bool {
         self.axes == other.axes && self.same_but_transfer_and_layout(other)
     }
@@ -935,7 +1049,7 @@ impl TexturesKey {
         Arc::ptr_eq(&self.volume, &other.volume)
             && self.orientation == other.orientation
             && self.window == other.window
-            && (self.coarse || !other.coarse)
+            && self.levels.serve(other.levels)
     }
 }
 
@@ -1112,7 +1226,7 @@ impl CachedTextures {
             self.key.gradient.take()
         };
         self.key = TexturesKey {
-            coarse: self.key.coarse,
+            levels: self.key.levels,
             environment: self.key.environment.clone(),
             gradient,
             ..key
@@ -1203,11 +1317,18 @@ impl CachedTextures {
         key: TexturesKey,
     ) -> Result<PendingUpload, GpuError> {
         self.grown.clear();
-        let (window, sample_distance, coarse) = (key.window, key.sample_distance, self.key.coarse);
+        // The gradient volume at the levels `key` asks for: without the full level where it
+        // does not (the viewer's coarse levels), which the textures then lack as a whole.
+        let levels = Resolutions {
+            full: key.levels.full,
+            half: self.key.levels.half,
+        };
+        let (window, sample_distance) = (key.window, key.sample_distance);
         let kept = self.staging.take();
         let pending = self.replace(key, |t| {
-            t.replace_eta(ctx, volume, window, refraction, tf, sample_distance, coarse, kept)
+            t.replace_eta(ctx, volume, window, refraction, tf, sample_distance, levels, kept)
         })?;
+        self.key.levels = levels;
         self.staging = pending.staging();
         Ok(pending)
     }
@@ -1215,6 +1336,11 @@ impl CachedTextures {
     /// The staging buffer kept for the next upload of volumes, given up.
     pub fn take_staging(&mut self) -> Option<Arc<Buffer>> {
         self.staging.take()
+    }
+
+    /// Whether the textures were made from `volume`.
+    pub fn of_volume(&self, volume: &Arc<Volume>) -> bool {
+        Arc::ptr_eq(&self.key.volume, volume)
     }
 
     /// Whether the textures were made from `key`'s volume, its axes laid out the same way.
@@ -1307,6 +1433,107 @@ mod tests {
         let grown: Vec<_> = edited.iter().map(|o| o.grown(near)).collect();
         assert_eq!(*anew, grown[0].words(&grown[1..]));
         assert_ne!(*anew, *kept);
+    }
+
+    /// A ramp of values along each axis in turn, over a volume with odd sides (so that a half
+    /// level's texel spans a little more than two voxels) and η linear in the value: the half
+    /// levels of the gradient and orientation volumes, made from the half level's values, give
+    /// the full levels' per-voxel differences inside the volume, which is what the passes read
+    /// at either level. Made alone (the viewer's coarse levels), the half level is the same to
+    /// the bit, and the full level is a placeholder texel.
+    #[test]
+    fn the_half_levels_scale_as_the_full_levels_and_need_not_wait_for_them() {
+        use super::{half_orientation, half_texel_voxels, Refracting, Resolutions};
+        use crate::render::coarse::{half_dims, half_level};
+        use crate::render::layers::orientation_volume;
+        use crate::scene::Gradient;
+        let dims = [21, 19, 17];
+        let half = half_dims(dims);
+        let voxels = half_texel_voxels(dims);
+        assert!(voxels.iter().all(|&v| v > 2.0), "{voxels:?}");
+        let eta = crate::transfer::Curve {
+            points: vec![[0.0, 1.0], [1.0, 1.5]],
+        };
+        let spacing = [0.5, 0.5, 0.8];
+        for axis in 0..3 {
+            // 2000 of 65535 a voxel: a texel of the full level.
+            let samples: Vec<u16> = (0..dims.iter().product::<usize>())
+                .map(|i| {
+                    let at = [i % dims[0], i / dims[0] % dims[1], i / (dims[0] * dims[1])];
+                    (5000 + 2000 * at[axis]) as u16
+                })
+                .collect();
+            let samples_half = half_level(&samples, dims);
+            let make = |levels| {
+                Refracting::new(
+                    &samples,
+                    Some(&samples_half),
+                    dims,
+                    [3, 3, 3],
+                    (None, Gradient::Central),
+                    &eta,
+                    levels,
+                )
+            };
+            let both = make(Resolutions { full: true, half: true });
+            let alone = make(Resolutions {
+                full: false,
+                half: true,
+            });
+            let (texels, extent) = both.half.clone().expect("a half level");
+            assert_eq!(extent, half.map(|n| n as u32));
+            assert_eq!(
+                alone.half.as_ref().map(|h| &h.0),
+                Some(&texels),
+                "axis {axis}: made alone"
+            );
+            assert_eq!((alone.extent, alone.texels.len()), ([1, 1, 1], 1), "a placeholder");
+            assert_eq!(
+                alone.bending.0,
+                alone.half_bending.as_ref().unwrap().0,
+                "the half level's flags stand in"
+            );
+            // Inside, two voxels from every face at the full level and one at the half.
+            let inner = |d: [usize; 3], m: usize| {
+                (0..d.iter().product::<usize>()).filter(move |&i| {
+                    let at = [i % d[0], i / d[0] % d[1], i / (d[0] * d[1])];
+                    (0..3).all(|a| at[a] >= m && at[a] + m < d[a])
+                })
+            };
+            // Twice the derivative per voxel: 2 · 2000/65535 · 0.5 of η.
+            let expected = 2.0 * 2000.0 / 65535.0 * 0.5;
+            // Relative: along an odd side of n voxels the half level's last texel covers part
+            // of a voxel, and the box filter's means of the ramp lie at positions whose
+            // central differences are off the texels' span by up to 1/n² (0.35 % at 17); f16
+            // rounding adds 2⁻¹¹, the means' 16-bit rounding half a unit of a difference of
+            // over 8000 (6·10⁻⁵).
+            let tolerance = 1.0 / (dims[axis] * dims[axis]) as f32 + 1e-3;
+            for (name, d, t) in [("full", dims, &both.texels), ("half", half, &texels)] {
+                for i in inner(d, 1) {
+                    let g = t[i][axis].to_f32();
+                    assert!(
+                        (g - expected).abs() < tolerance * expected,
+                        "{name} axis {axis} texel {i}: {g}"
+                    );
+                }
+            }
+            // The orientation volume likewise, with the half level's spacing.
+            let reach = 1.2;
+            let full = orientation_volume(&samples, dims, spacing, reach);
+            let coarse = half_orientation(&samples_half, dims, spacing, reach);
+            // Central differences too: twice the derivative per voxel.
+            let per_voxel = 2.0 * 2000.0 * crate::render::layers::ORIENTATION_SCALE / 65535.0;
+            for (name, d, t) in [("full", dims, &full), ("half", half, &coarse)] {
+                for i in inner(d, 3) {
+                    let g = t[i][axis] as f32;
+                    // As above, and the SNORM texels' rounding (half a unit).
+                    assert!(
+                        (g - per_voxel).abs() < tolerance * per_voxel + 0.5,
+                        "orientation {name} axis {axis} texel {i}: {g}"
+                    );
+                }
+            }
+        }
     }
 
     #[test]
