@@ -192,6 +192,15 @@ fn renders_at_either_level_share_the_kept_textures() {
     let again = gpu.render(&p, &keep);
     assert_eq!(again.stats.upload_bytes, 0, "half level: the kept textures serve");
     assert_eq!(again.image.pixels, windowed.image.pixels, "the half level made alone");
+    // Another volume (a time step, another file) is made at the half level alone as well.
+    p.volume = std::sync::Arc::new(striped_ball());
+    let other = gpu.render(&p, &keep);
+    assert_eq!(other.stats.upload_bytes, windowed.stats.upload_bytes, "another volume");
+    assert_eq!(
+        other.image.pixels,
+        fresh(&p),
+        "another volume: the image of a fresh upload"
+    );
 
     // Textures made without the half level are made again for a render that reads it.
     let mut gpu = Gpu::new();

@@ -484,9 +484,9 @@ fn frame_request(scene: &Scene, width: u32, height: u32, pass: u32) -> RenderReq
     let mut req = RenderRequest::new(width, height);
     // The coarse levels read the volumes' half-resolution level: made with the first frame
     // and kept by the levels at full resolution, so that no coarse level uploads the volumes
-    // again. A coarse frame that must make them anew after a change of the data window or of
-    // η makes the half level alone, an eighth of the volumes; the next level at full
-    // resolution makes the rest.
+    // again. A coarse frame that must make them anew after a change of the data window, of η
+    // or of the volume makes the half level alone, an eighth of the volumes; the next level
+    // at full resolution makes the rest.
     req.keep_coarse_volume = true;
     // A drag of the data window or of η writes the volumes' staging buffer again.
     req.keep_staging = true;

@@ -1012,11 +1012,12 @@ pub(super) fn run(
     // A render that reads only the half level makes only it: the viewer's coarse levels
     // after a change of the data window or of η (on the CT head about a third of the frame's
     // time); the next level at full resolution makes the full level then. The viewer's
-    // first frame of a volume makes both: its shaders compile beside the upload, which hides
-    // it, where the first level at full resolution would wait for it.
-    let made_before = cache.as_ref().is_some_and(|c| c.of_volume(&prepared.volume));
+    // first frame makes both: its shaders compile beside the upload, which hides it, where
+    // the first level at full resolution would wait for it. A volume after it (another time
+    // step, another file) is made at the half level alone.
+    let first = cache.is_none();
     let levels = Resolutions {
-        full: !coarse || (req.keep_coarse_volume && !made_before),
+        full: !coarse || (req.keep_coarse_volume && first),
         half: coarse || req.keep_coarse_volume,
     };
     let mut key = TexturesKey::new(prepared, &features, levels, view.memory_axes);

@@ -1363,11 +1363,6 @@ impl CachedTextures {
         self.staging.take()
     }
 
-    /// Whether the textures were made from `volume`.
-    pub fn of_volume(&self, volume: &Arc<Volume>) -> bool {
-        Arc::ptr_eq(&self.key.volume, volume)
-    }
-
     /// Whether the textures were made from `key`'s volume, its axes laid out the same way.
     pub fn same_volume_and_layout(&self, key: &TexturesKey) -> bool {
         Arc::ptr_eq(&self.key.volume, &key.volume) && self.key.axes == key.axes
