@@ -21,7 +21,7 @@ use crate::gpu::{
 
 use super::light_tiles::{self, NEVER};
 use super::shaders::Pass;
-use super::upload::{CachedTextures, Resolutions, SceneTextures, TexturesKey};
+use super::upload::{CachedTextures, RawSet, Resolutions, SceneTextures, TexturesKey};
 use super::{
     background, DebugView, Features, Immediates, Params, PreparedScene, RenderError, RenderOutput, RenderRequest,
     RenderStats, RenderedImage,
@@ -1069,18 +1069,24 @@ pub(super) fn run(
             // The old textures go before the new are allocated, but for a staging buffer kept
             // and, where they are of the same volume laid out the same way (another data
             // window), the volume images, which the new take where they are what a new image
-            // would be.
-            let (staging, reuse) = match cache.take() {
+            // would be, and the extremes of the volume's values, which the new map through
+            // their window.
+            // Renders that keep the staging buffer for the next upload of volumes (the
+            // viewer) make the extremes with the first upload of a volume too, so that its
+            // first change of the data window maps them already.
+            let fresh = || (Vec::new(), req.keep_staging.then(RawSet::default));
+            let (staging, (reuse, raw)) = match cache.take() {
                 Some(mut c) => {
                     let staging = c.take_staging();
                     let reuse = if c.same_volume_and_layout(&key) {
-                        c.into_volume_images()
+                        let (images, raw) = c.into_volume_images();
+                        (images, Some(raw))
                     } else {
-                        Vec::new()
+                        fresh()
                     };
                     (staging, reuse)
                 }
-                None => (None, Vec::new()),
+                None => (None, fresh()),
             };
 
             let axes = view.memory_axes;
@@ -1099,6 +1105,7 @@ pub(super) fn run(
                 key.levels(),
                 staging,
                 reuse,
+                raw,
             )?;
             *cache = Some(CachedTextures::new(key, textures, &upload));
             pending = Some(upload);

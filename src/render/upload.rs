@@ -12,7 +12,7 @@ use crate::volume::Volume;
 
 use super::environment::EnvMap;
 use super::gradient::gradient_volume;
-use super::occupancy::{Grown, Occupancy, ValueRanges};
+use super::occupancy::{Grown, Occupancy, RawRanges, ValueRanges};
 
 type Levels = Vec<(u64, [u32; 3])>;
 
@@ -51,6 +51,38 @@ pub struct SceneTextures {
     kept_tables: Vec<TableTexels>,
     /// What the transfer functions do not change, for [`SceneTextures::replace_transfer`].
     untouched: Untouched,
+    /// The extremes of the volume's own values per brick and cell, where a change of the data
+    /// window made them, for the next change to map.
+    raw: RawSet,
+}
+
+/// The bricks' and cells' extremes of a volume's own values ([`RawRanges`]) at the levels
+/// made: the textures of the next data window of the same volume, laid out the same way, map
+/// them through it instead of reading its samples again.
+#[derive(Clone, Default)]
+pub struct RawSet {
+    full: Option<Arc<[RawRanges; 2]>>,
+    half: Option<Arc<[RawRanges; 2]>>,
+}
+
+impl RawSet {
+    /// With the levels asked for (`full`, `half`) made from `volume` where they are not yet.
+    fn filled(mut self, volume: &Volume, full: bool, half: bool) -> RawSet {
+        let grids = |f: fn(&[f32], [usize; 3], usize) -> RawRanges| {
+            let (bricks, cells) = rayon::join(
+                || f(&volume.data, volume.dims, super::bricks::BRICK),
+                || f(&volume.data, volume.dims, super::occupancy::CELL),
+            );
+            Arc::new([bricks, cells])
+        };
+        if full && self.full.is_none() {
+            self.full = Some(grids(RawRanges::new));
+        }
+        if half && self.half.is_none() {
+            self.half = Some(grids(RawRanges::half_level));
+        }
+        self
+    }
 }
 
 /// What a transfer-function edit leaves as it was (its η aside): the range of the volume's
@@ -499,7 +531,10 @@ impl SceneTextures {
     /// `kept_staging`: a staging buffer kept from an earlier upload, used again where it is large
     /// enough ([`PendingUpload::staging`] gives this one's); `reuse`: volume images of
     /// textures made before (of the same volume), each taken where it is what a new one would
-    /// be, the others freed.
+    /// be, the others freed; `raw`: the extremes of the volume's values held by textures made
+    /// before of the same volume laid out the same way (another data window), or none yet for
+    /// a render that expects such changes: the value ranges are mapped from them (made where
+    /// they lack them) and kept. Without, the ranges are made from the samples.
     #[allow(clippy::too_many_arguments)]
     pub fn upload(
         ctx: &Arc<Context>,
@@ -513,6 +548,7 @@ impl SceneTextures {
         levels: Resolutions,
         kept_staging: Option<Arc<Buffer>>,
         reuse: Vec<Image>,
+        raw: Option<RawSet>,
     ) -> Result<(Self, PendingUpload), GpuError> {
         let mut staged = Staged {
             pool: reuse,
@@ -534,10 +570,22 @@ impl SceneTextures {
         // (allocating, a last slice, the reductions' later axes), and one fills the other's
         // gaps.
         let ranges = || {
+            // Another data window: the extremes of the volume's values mapped through it.
+            let raw = raw.map(|r| r.filled(volume, full, samples_half.is_some()));
+            let windowed = |grids: &Option<Arc<[RawRanges; 2]>>| {
+                grids.as_ref().map(|g| (g[0].windowed(window), g[1].windowed(window)))
+            };
             let half_ranges = samples_half.as_ref().map(|_| {
+                let (brick_ranges, cell_ranges) =
+                    windowed(&raw.as_ref().and_then(|r| r.half.clone())).unwrap_or_else(|| {
+                        (
+                            ValueRanges::half_level(&samples, vol_dims, super::bricks::BRICK),
+                            ValueRanges::half_level(&samples, vol_dims, super::occupancy::CELL),
+                        )
+                    });
                 Box::new(Untouched {
-                    brick_ranges: ValueRanges::half_level(&samples, vol_dims, super::bricks::BRICK),
-                    cell_ranges: ValueRanges::half_level(&samples, vol_dims, super::occupancy::CELL),
+                    brick_ranges,
+                    cell_ranges,
                     refracting: None,
                     half: None,
                     values: samples_half.clone(),
@@ -547,12 +595,14 @@ impl SceneTextures {
             // same grids) stand in.
             let (brick_ranges, cell_ranges) = match (&half_ranges, full) {
                 (Some(h), false) => (h.brick_ranges.clone(), h.cell_ranges.clone()),
-                _ => (
-                    ValueRanges::new(&samples, vol_dims, super::bricks::BRICK),
-                    ValueRanges::new(&samples, vol_dims, super::occupancy::CELL),
-                ),
+                _ => windowed(&raw.as_ref().and_then(|r| r.full.clone())).unwrap_or_else(|| {
+                    (
+                        ValueRanges::new(&samples, vol_dims, super::bricks::BRICK),
+                        ValueRanges::new(&samples, vol_dims, super::occupancy::CELL),
+                    )
+                }),
             };
-            (brick_ranges, cell_ranges, half_ranges)
+            (brick_ranges, cell_ranges, half_ranges, raw.unwrap_or_default())
         };
         let gradient = || {
             refraction.map(|source| {
@@ -581,7 +631,7 @@ impl SceneTextures {
         let table_texels = || TableTexels::new(tf, sample_distance);
         let ((ranges, gradient), ((orientation_extent, orientation_texels, orientation_half), table_texels)) =
             rayon::join(|| rayon::join(ranges, gradient), || rayon::join(layers, table_texels));
-        let (brick_ranges, cell_ranges, mut half_ranges) = ranges;
+        let (brick_ranges, cell_ranges, mut half_ranges, raw) = ranges;
         let mut refracting = None;
         let mut gradient_half = None;
         let (gradient_extent, gradient_texels) = match gradient {
@@ -715,6 +765,7 @@ impl SceneTextures {
             half_bricks,
             kept_tables: vec![table_texels],
             untouched,
+            raw,
         };
         Ok((textures, PendingUpload::new(buffer, uploads)))
     }
@@ -1369,14 +1420,16 @@ impl CachedTextures {
     }
 
     /// The volume images (the volume, gradient and orientation volumes and their half
-    /// levels), for new textures to take where they are what a new image would be.
-    pub fn into_volume_images(self) -> Vec<Image> {
+    /// levels), for new textures to take where they are what a new image would be, and the
+    /// extremes of the volume's values they hold.
+    pub fn into_volume_images(self) -> (Vec<Image>, RawSet) {
         let t = self.textures;
-        [Some(t.volume), Some(t.gradient), Some(t.orientation)]
+        let images = [Some(t.volume), Some(t.gradient), Some(t.orientation)]
             .into_iter()
             .chain(t.half)
             .flatten()
-            .collect()
+            .collect();
+        (images, t.raw)
     }
 
     /// The textures' occupied cells grown by `margin` (`GrowthCache::grown`).

@@ -140,22 +140,26 @@ impl Volume {
     /// Maps values through the window `[lo, hi]` to [0, 1] (clamped) and quantises to u16
     /// (0..=65535, round to nearest). An empty or inverted window acts as a threshold at `lo`.
     pub fn normalized_u16(&self, window: [f32; 2]) -> Vec<u16> {
-        let [lo, hi] = window;
-        let width = hi - lo;
-        let usable = width.is_finite() && width > 0.0;
-        self.data
-            .par_iter()
-            .map(|&v| {
-                let t = if usable {
-                    (v - lo) / width
-                } else if v > lo {
-                    1.0
-                } else {
-                    0.0
-                };
-                round_half_away(t.clamp(0.0, 1.0) * 65535.0) as u16
-            })
-            .collect()
+        let normalize = normalizer(window);
+        self.data.par_iter().map(|&v| normalize(v)).collect()
+    }
+}
+
+/// What [`Volume::normalized_u16`] makes of each value under `window`. It never decreases as
+/// the value grows, so the extremes of a set of values map to the extremes of their samples.
+pub fn normalizer(window: [f32; 2]) -> impl Fn(f32) -> u16 + Copy + Sync {
+    let [lo, hi] = window;
+    let width = hi - lo;
+    let usable = width.is_finite() && width > 0.0;
+    move |v: f32| {
+        let t = if usable {
+            (v - lo) / width
+        } else if v > lo {
+            1.0
+        } else {
+            0.0
+        };
+        round_half_away(t.clamp(0.0, 1.0) * 65535.0) as u16
     }
 }
 
