@@ -51,8 +51,8 @@ pub struct SceneTextures {
     kept_tables: Vec<TableTexels>,
     /// What the transfer functions do not change, for [`SceneTextures::replace_transfer`].
     untouched: Untouched,
-    /// The extremes of the volume's own values per brick and cell, where a change of the data
-    /// window made them, for the next change to map.
+    /// The extremes of the volume's own values per brick and cell, where the upload made them
+    /// (the viewer's), for the next change of the data window to map.
     raw: RawSet,
 }
 
