@@ -39,40 +39,14 @@ pub struct ValueRanges {
 impl ValueRanges {
     /// The ranges that trilinear sampling of the volume itself reaches from each cell.
     pub fn new(samples: &[u16], dims: [usize; 3], edge: usize) -> ValueRanges {
-        Self::reached(samples, dims, edge, |i, n| {
-            (reach(i, n, edge), i == 0 || (i + 1) * edge >= n)
-        })
+        Extremes::new(samples, dims, edge).ranges(|v| v)
     }
 
     /// The ranges that trilinear sampling of the volume's half-resolution level
     /// (`coarse.rs`) reaches from each cell ([`half_level_reach`]): its texels are means of
     /// the voxels they cover, so their values lie within those voxels' range.
     pub fn half_level(samples: &[u16], dims: [usize; 3], edge: usize) -> ValueRanges {
-        Self::reached(samples, dims, edge, |i, n| half_level_reach(i, n, edge))
-    }
-
-    /// `reach(i, n)`: along an axis of n voxels, the voxels that samples in cell i read, and
-    /// whether they read the border beyond the volume (the value 0) too.
-    fn reached(
-        samples: &[u16],
-        dims: [usize; 3],
-        edge: usize,
-        reach: impl Fn(usize, usize) -> (std::ops::Range<usize>, bool) + Sync,
-    ) -> ValueRanges {
-        let (mut ranges, border) = extremes(samples, dims, edge, reach, [u16::MAX, 0], |a, b| {
-            [a[0].min(b[0]), a[1].max(b[1])]
-        });
-        for (range, &border) in ranges.iter_mut().zip(&border) {
-            if border {
-                range[0] = 0;
-            }
-        }
-        ValueRanges {
-            ranges,
-            cells: cells_of(dims, edge),
-            voxels: dims,
-            edge,
-        }
+        Extremes::half_level(samples, dims, edge).ranges(|v| v)
     }
 
     /// The cells along each axis.
@@ -95,93 +69,115 @@ impl ValueRanges {
     }
 }
 
-/// Per cell of `edge` voxels, the extremes of `values` (`empty` where it reaches none) over
-/// the voxels that `reach` says samples in it read, and whether they read the border too.
-fn extremes<V: Copy + Send + Sync>(
-    values: &[V],
-    dims: [usize; 3],
-    edge: usize,
-    reach: impl Fn(usize, usize) -> (std::ops::Range<usize>, bool) + Sync,
-    empty: [V; 2],
-    combine: impl Fn([V; 2], [V; 2]) -> [V; 2] + Sync,
-) -> (Vec<[V; 2]>, Vec<bool>) {
-    let cells = cells_of(dims, edge);
-    let reached = [0, 1, 2].map(|a| (0..cells[a]).map(|i| reach(i, dims[a])).collect::<Vec<_>>());
-    let spans = reached
-        .each_ref()
-        .map(|r| r.iter().map(|(span, _)| span.clone()).collect());
-    let ranges = over_boxes(values, dims, &spans, empty, |&v| [v, v], combine);
-    let border = (0..ranges.len())
-        .map(|c| {
-            let [cx, cy, cz] = [c % cells[0], (c / cells[0]) % cells[1], c / (cells[0] * cells[1])];
-            reached[0][cx].1 || reached[1][cy].1 || reached[2][cz].1
-        })
-        .collect();
-    (ranges, border)
+/// A volume's values as [`Extremes`] reduces them: the 16-bit samples, or the volume's own
+/// values before a data window.
+pub trait Value: Copy + PartialOrd + Send + Sync {
+    /// The extremes of no value: above and below every value.
+    const NONE: [Self; 2];
 }
 
-/// The extremes of a volume's own values (before a data window) that each cell of `edge`
-/// voxels reaches, and whether it reaches the border: under a window, the
-/// [`ValueRanges`] of its 16-bit samples ([`RawRanges::windowed`]) without normalising the
-/// volume and reading its samples again, since normalising never decreases a value
-/// (`volume::normalizer`). A change of the data window maps them: on the CT head the four
-/// grids' ranges took about 100 ms of the CPU's time on each change.
+impl Value for u16 {
+    const NONE: [u16; 2] = [u16::MAX, 0];
+}
+
+impl Value for f32 {
+    const NONE: [f32; 2] = [f32::INFINITY, f32::NEG_INFINITY];
+}
+
+/// Per cell of `edge` voxels (x fastest), the extremes of the volume's values that trilinear
+/// sampling reaches from it ([`Value::NONE`] where it reaches none), and whether it reaches
+/// the border beyond the volume (the value 0) too.
 #[derive(Clone, Debug)]
-pub struct RawRanges {
-    extremes: Vec<[f32; 2]>,
+pub struct Extremes<V> {
+    extremes: Vec<[V; 2]>,
     border: Vec<bool>,
     cells: [usize; 3],
     voxels: [usize; 3],
     edge: usize,
 }
 
-impl RawRanges {
-    /// Those of [`ValueRanges::new`].
-    pub fn new(data: &[f32], dims: [usize; 3], edge: usize) -> RawRanges {
-        Self::reached(data, dims, edge, |i, n| {
+/// The extremes of a volume's own values (before a data window) that each cell reaches: under
+/// a window, the [`ValueRanges`] of its 16-bit samples ([`RawRanges::windowed`]) without
+/// normalising the volume and reading its samples again, since normalising never decreases a
+/// value (`volume::normalizer`). A change of the data window maps them: on the CT head the
+/// four grids' ranges took about 100 ms of the CPU's time on each change.
+pub type RawRanges = Extremes<f32>;
+
+impl<V: Value> Extremes<V> {
+    /// Those that sampling the volume itself reaches.
+    pub fn new(values: &[V], dims: [usize; 3], edge: usize) -> Extremes<V> {
+        Self::reached(values, dims, edge, |i, n| {
             (reach(i, n, edge), i == 0 || (i + 1) * edge >= n)
         })
     }
 
-    /// Those of [`ValueRanges::half_level`].
-    pub fn half_level(data: &[f32], dims: [usize; 3], edge: usize) -> RawRanges {
-        Self::reached(data, dims, edge, |i, n| half_level_reach(i, n, edge))
+    /// Those that sampling the volume's half-resolution level reaches
+    /// ([`ValueRanges::half_level`]).
+    pub fn half_level(values: &[V], dims: [usize; 3], edge: usize) -> Extremes<V> {
+        Self::reached(values, dims, edge, |i, n| half_level_reach(i, n, edge))
     }
 
+    /// `reach(i, n)`: along an axis of n voxels, the voxels that samples in cell i read, and
+    /// whether they read the border beyond the volume too.
     fn reached(
-        data: &[f32],
+        values: &[V],
         dims: [usize; 3],
         edge: usize,
         reach: impl Fn(usize, usize) -> (std::ops::Range<usize>, bool) + Sync,
-    ) -> RawRanges {
-        let (extremes, border) = extremes(data, dims, edge, reach, [f32::INFINITY, f32::NEG_INFINITY], |a, b| {
-            [a[0].min(b[0]), a[1].max(b[1])]
-        });
-        RawRanges {
+    ) -> Extremes<V> {
+        let cells = cells_of(dims, edge);
+        let reached = [0, 1, 2].map(|a| (0..cells[a]).map(|i| reach(i, dims[a])).collect::<Vec<_>>());
+        let spans = reached
+            .each_ref()
+            .map(|r| r.iter().map(|(span, _)| span.clone()).collect());
+        let min = |a: V, b: V| if b < a { b } else { a };
+        let max = |a: V, b: V| if a < b { b } else { a };
+        let extremes = over_boxes(
+            values,
+            dims,
+            &spans,
+            V::NONE,
+            |&v| [v, v],
+            |a, b| [min(a[0], b[0]), max(a[1], b[1])],
+        );
+        let border = (0..extremes.len())
+            .map(|c| {
+                let [cx, cy, cz] = [c % cells[0], (c / cells[0]) % cells[1], c / (cells[0] * cells[1])];
+                reached[0][cx].1 || reached[1][cy].1 || reached[2][cz].1
+            })
+            .collect();
+        Extremes {
             extremes,
             border,
-            cells: cells_of(dims, edge),
+            cells,
             voxels: dims,
             edge,
         }
     }
 
-    /// The ranges of the volume's 16-bit samples under `window` (`Volume::normalized_u16`): the
-    /// same as made from them, to the bit (an empty cell's infinities map to 65535 and 0, as
-    /// its samples' empty range is).
-    pub fn windowed(&self, window: [f32; 2]) -> ValueRanges {
-        let normalize = crate::volume::normalizer(window);
+    /// The ranges of the 16-bit samples that `sample` makes of the values (which it must
+    /// never decrease): its extremes, from 0 where the cell reaches the border.
+    fn ranges(&self, sample: impl Fn(V) -> u16 + Sync) -> ValueRanges {
         ValueRanges {
             ranges: self
                 .extremes
                 .par_iter()
                 .zip(&self.border)
-                .map(|(&[lo, hi], &border)| [if border { 0 } else { normalize(lo) }, normalize(hi)])
+                .map(|(&[lo, hi], &border)| [if border { 0 } else { sample(lo) }, sample(hi)])
                 .collect(),
             cells: self.cells,
             voxels: self.voxels,
             edge: self.edge,
         }
+    }
+}
+
+impl RawRanges {
+    /// The ranges of the volume's 16-bit samples under `window` (`Volume::normalized_u16`): the
+    /// same as made from them, to the bit (an empty cell's infinities map to 65535 and 0, as
+    /// its samples' empty range is).
+    pub fn windowed(&self, window: [f32; 2]) -> ValueRanges {
+        self.ranges(crate::volume::normalizer(window))
     }
 }
 

@@ -572,17 +572,21 @@ impl SceneTextures {
         let ranges = || {
             // Another data window: the extremes of the volume's values mapped through it.
             let raw = raw.map(|r| r.filled(volume, full, samples_half.is_some()));
-            let windowed = |grids: &Option<Arc<[RawRanges; 2]>>| {
-                grids.as_ref().map(|g| (g[0].windowed(window), g[1].windowed(window)))
+            // A level's bricks' and cells' ranges: mapped from its extremes where there are,
+            // else made from the samples (`from_samples`).
+            let level = |extremes: Option<&Arc<[RawRanges; 2]>>,
+                         from_samples: fn(&[u16], [usize; 3], usize) -> ValueRanges| {
+                match extremes {
+                    Some(g) => (g[0].windowed(window), g[1].windowed(window)),
+                    None => (
+                        from_samples(&samples, vol_dims, super::bricks::BRICK),
+                        from_samples(&samples, vol_dims, super::occupancy::CELL),
+                    ),
+                }
             };
             let half_ranges = samples_half.as_ref().map(|_| {
                 let (brick_ranges, cell_ranges) =
-                    windowed(&raw.as_ref().and_then(|r| r.half.clone())).unwrap_or_else(|| {
-                        (
-                            ValueRanges::half_level(&samples, vol_dims, super::bricks::BRICK),
-                            ValueRanges::half_level(&samples, vol_dims, super::occupancy::CELL),
-                        )
-                    });
+                    level(raw.as_ref().and_then(|r| r.half.as_ref()), ValueRanges::half_level);
                 Box::new(Untouched {
                     brick_ranges,
                     cell_ranges,
@@ -595,12 +599,7 @@ impl SceneTextures {
             // same grids) stand in.
             let (brick_ranges, cell_ranges) = match (&half_ranges, full) {
                 (Some(h), false) => (h.brick_ranges.clone(), h.cell_ranges.clone()),
-                _ => windowed(&raw.as_ref().and_then(|r| r.full.clone())).unwrap_or_else(|| {
-                    (
-                        ValueRanges::new(&samples, vol_dims, super::bricks::BRICK),
-                        ValueRanges::new(&samples, vol_dims, super::occupancy::CELL),
-                    )
-                }),
+                _ => level(raw.as_ref().and_then(|r| r.full.as_ref()), ValueRanges::new),
             };
             (brick_ranges, cell_ranges, half_ranges, raw.unwrap_or_default())
         };
@@ -881,13 +880,13 @@ impl SceneTextures {
             (Some(h), false, None) => h.values.as_deref(),
             _ => None,
         };
-        let samples = match (refraction.0, kept) {
-            (None, None) => volume.normalized_u16(window),
-            _ => Vec::new(),
-        };
-        let own_half = match (refraction.0, kept) {
-            (None, None) => half_of(&samples, volume.dims, levels.half),
-            _ => None,
+        let (samples, own_half) = match (refraction.0, kept) {
+            (None, None) => {
+                let samples = volume.normalized_u16(window);
+                let half = half_of(&samples, volume.dims, levels.half);
+                (samples, half)
+            }
+            _ => (Vec::new(), None),
         };
         let samples_half = kept.or(own_half.as_deref());
         // The tables beside the gradient volume (the edit changes both).
